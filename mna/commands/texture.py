@@ -1,0 +1,5 @@
+"""`mna` subcommands of the texture stage (not wired yet)."""
+
+
+def register(subparsers) -> None:
+    """Add this group's subcommands to the `mna` parser."""

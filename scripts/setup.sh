@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Idempotent setup: system packages (when missing), project-local .venv, project install.
+# A second run on a ready machine only checks stamps and takes seconds.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SYS_PKGS=(libllvm19 libegl1 libgl1-mesa-dri libegl-mesa0 libgl1 libglu1-mesa)
+missing=()
+for p in "${SYS_PKGS[@]}"; do
+    dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+        echo "[setup] installing system packages: ${missing[*]}"
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -qq >/dev/null
+        apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+    else
+        echo "[setup] warning: missing system packages (${missing[*]}) and cannot apt-get; renderers may fall back" >&2
+    fi
+fi
+
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+    echo "[setup] creating .venv"
+    "$PY" -m venv .venv
+fi
+stamp=.venv/.mna-setup-stamp
+want=$(cat pyproject.toml scripts/setup.sh | sha1sum | cut -d' ' -f1)
+if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
+    echo "[setup] .venv is up to date"
+    exit 0
+fi
+echo "[setup] installing the project into .venv"
+.venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
+.venv/bin/python -m pip install -q "torch==2.13.0"
+.venv/bin/python -m pip install -q -e ".[dev]"
+echo "$want" > "$stamp"
+echo "[setup] done"
