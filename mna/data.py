@@ -1,0 +1,166 @@
+"""Input surfaces: load a mesh or point cloud, validate it, normalise it to the unit ball, sample it.
+
+A ``Surface`` holds the input in the **normalised** frame (``x_unit = (x - center) / scale``,
+centre = bounding-box centre, max radius 1, DESIGN's metric frame) and remembers the
+transform, so everything written goes back to the input frame with ``denormalize``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from mna.errors import InputError
+
+MESH_EXTS = {".obj", ".ply", ".off", ".stl", ".glb", ".gltf"}
+POINT_EXTS = {".xyz", ".npy", ".npz", ".txt"}
+#: below this extent (relative to nothing: absolute units) the geometry is treated as a point.
+MIN_EXTENT = 1e-12
+MIN_POINTS = 16
+
+
+@dataclass
+class Normalization:
+    """``x_unit = (x_input - center) / scale``."""
+
+    center: np.ndarray  # (3,)
+    scale: float
+
+    def apply(self, x: np.ndarray) -> np.ndarray:
+        return (x - self.center) / self.scale
+
+    def invert(self, x: np.ndarray) -> np.ndarray:
+        return x * self.scale + self.center
+
+    def to_dict(self) -> dict:
+        return {"center": [float(c) for c in self.center], "scale": float(self.scale)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Normalization":
+        return cls(np.asarray(d["center"], dtype=np.float64), float(d["scale"]))
+
+    @classmethod
+    def fit(cls, points: np.ndarray) -> "Normalization":
+        lo, hi = points.min(0), points.max(0)
+        center = (lo + hi) / 2
+        scale = float(np.linalg.norm(points - center, axis=1).max())
+        if not np.isfinite(scale) or scale < MIN_EXTENT:
+            raise InputError("input has zero extent (all points coincide)")
+        return cls(center, scale)
+
+
+@dataclass
+class Surface:
+    """The target surface in the unit-ball frame: a mesh, or a point cloud when ``mesh`` is None."""
+
+    points: np.ndarray  # (P, 3) float64: mesh vertices or the cloud's points, normalised
+    mesh: trimesh.Trimesh | None  # normalised mesh (None for point clouds)
+    normalization: Normalization
+    path: str
+
+    @property
+    def is_mesh(self) -> bool:
+        return self.mesh is not None
+
+    def sample(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        """``count`` points on the surface: area-uniform on a mesh, a random subset of a cloud."""
+        if self.mesh is not None:
+            pts, _ = trimesh.sample.sample_surface(self.mesh, count, seed=int(rng.integers(2**31 - 1)))
+            return np.asarray(pts, dtype=np.float64)
+        replace = count > len(self.points)
+        idx = rng.choice(len(self.points), size=count, replace=replace)
+        return self.points[idx]
+
+    def area(self) -> float | None:
+        return float(self.mesh.area) if self.mesh is not None else None
+
+
+def load_surface(path: str | Path) -> Surface:
+    """Load a mesh (.obj .ply .off .stl .glb) or point cloud (.ply without faces, .xyz, .npy/.npz)."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"input file not found: {path}")
+    if path.is_dir():
+        raise InputError(f"input is a folder, expected a mesh or point-cloud file: {path}")
+    ext = path.suffix.lower()
+    if ext not in MESH_EXTS | POINT_EXTS:
+        raise InputError(
+            f"unknown input extension {ext or '(none)'!r} for {path.name}; "
+            f"meshes: {' '.join(sorted(MESH_EXTS))}; point clouds: .ply .xyz .npy .npz"
+        )
+    if path.stat().st_size == 0:
+        raise InputError(f"input file is empty: {path}")
+    if ext in POINT_EXTS:
+        points, faces = _read_points(path), None
+    else:
+        points, faces = _read_mesh(path)
+    return make_surface(points, faces, str(path))
+
+
+def make_surface(points: np.ndarray, faces: np.ndarray | None, path: str = "<memory>") -> Surface:
+    """Validate raw geometry (input frame) and normalise it."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InputError(f"expected points of shape (P, 3), got {points.shape} in {path}")
+    if not np.isfinite(points).all():
+        raise InputError(f"input has NaN or infinite coordinates: {path}")
+    if len(points) < MIN_POINTS:
+        raise InputError(f"input has {len(points)} points; at least {MIN_POINTS} are needed: {path}")
+    norm = Normalization.fit(points)
+    unit = norm.apply(points)
+    mesh = None
+    if faces is not None:
+        faces = np.asarray(faces)
+        if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+            raise InputError(f"mesh has no triangle faces: {path}")
+        if faces.min() < 0 or faces.max() >= len(points):
+            raise InputError(f"mesh faces index missing vertices: {path}")
+        mesh = trimesh.Trimesh(unit, faces, process=False)
+        if not mesh.area > 0:
+            raise InputError(f"mesh has zero surface area: {path}")
+    return Surface(unit, mesh, norm, path)
+
+
+def _read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types on bad files
+        raise InputError(f"cannot read {path.name}: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from None
+    if isinstance(loaded, trimesh.PointCloud):
+        return np.asarray(loaded.vertices), None
+    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))))
+    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3), dtype=np.int64)))
+    if len(vertices) == 0:
+        raise InputError(f"no geometry found in {path}")
+    if path.suffix.lower() == ".ply" and len(faces) == 0:
+        return vertices, None  # a PLY without faces is a point cloud
+    if len(faces) == 0:
+        raise InputError(f"mesh has no faces: {path}")
+    return vertices, faces
+
+
+def _read_points(path: Path) -> np.ndarray:
+    ext = path.suffix.lower()
+    try:
+        if ext == ".npy":
+            arr = np.load(path, allow_pickle=False)
+        elif ext == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                key = next((k for k in ("points", "pointcloud", "xyz", "vertices") if k in z), None)
+                if key is None:
+                    if len(z.files) != 1:
+                        raise InputError(f"{path.name} has arrays {z.files}; expected one named 'points'")
+                    key = z.files[0]
+                arr = z[key]
+        else:
+            arr = np.loadtxt(path, ndmin=2)
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"cannot read {path.name}: {type(exc).__name__}") from None
+    arr = np.asarray(arr, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] < 3:
+        raise InputError(f"expected an (N, 3) array of points in {path.name}, got shape {arr.shape}")
+    return arr[:, :3]

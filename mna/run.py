@@ -1,0 +1,218 @@
+"""The run folder (DESIGN contract): fit a surface into RUN/, extract and measure it.
+
+``fit_run`` writes ``config.yaml`` and ``checkpoint.pt`` as it goes, then ``extract_run``
+writes ``points.ply``, ``charts.npz``, ``charts.ply`` and ``metrics.json``. Every file is
+written under a temporary name and renamed, so an interrupted run leaves no half file.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+import trimesh
+
+from mna import config as config_mod
+from mna.atomic import atomic_path, write_json
+from mna.config import FitConfig
+from mna.data import Normalization, Surface, load_surface
+from mna.errors import MnaError
+from mna.fit import Fitter, resolve_device
+from mna.inference import estimate_c, extract_grid, rejection_sample
+from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
+from mna.model import NeuralAtlas
+
+CONFIG = "config.yaml"
+CHECKPOINT = "checkpoint.pt"
+METRICS = "metrics.json"
+POINTS = "points.ply"
+CHARTS = "charts.npz"
+CHARTS_PLY = "charts.ply"
+
+
+def prepare_output(out: str | Path, resume: bool) -> Path:
+    """Create (or check) the run folder; refuse to silently mix two different runs."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise MnaError(f"output path exists and is not a folder: {out}")
+    if resume:
+        if not (out / CHECKPOINT).is_file():
+            raise MnaError(f"--resume: no {CHECKPOINT} in {out}")
+        return out
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".mna-write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as exc:
+        raise MnaError(f"output folder {out} is not writable: {exc.strerror or exc}") from None
+    return out
+
+
+def run_config_dict(cfg: FitConfig, input_path: str) -> dict:
+    data = config_mod.to_dict(cfg)
+    return {"input": str(input_path), **data}
+
+
+def load_run_config(run: str | Path) -> tuple[FitConfig, str]:
+    """``(FitConfig, input path)`` from ``RUN/config.yaml``."""
+    data = config_mod.load_yaml(Path(run) / CONFIG)
+    input_path = data.pop("input", None)
+    if input_path is None:
+        raise MnaError(f"{Path(run) / CONFIG} has no 'input' key")
+    return config_mod.from_dict(data).validate(), input_path
+
+
+def save_checkpoint(run: Path, fitter: Fitter, normalization: Normalization) -> None:
+    state = fitter.state_dict()
+    state["normalization"] = normalization.to_dict()
+    state["config"] = config_mod.to_dict(fitter.cfg)
+    with atomic_path(run / CHECKPOINT) as tmp:
+        torch.save(state, tmp)
+
+
+@dataclass
+class FitRunResult:
+    run: Path
+    interrupted: bool
+    steps: int
+    seconds: float
+    metrics: dict | None
+
+
+def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: bool = False,
+            callback: Callable[[int], bool] | None = None, progress_bar: bool = True,
+            extract: bool = True, log: Callable[[str], None] = print) -> FitRunResult:
+    """Fit ``input_path`` into the run folder ``out`` (resuming from its checkpoint if asked)."""
+    cfg.validate()
+    surface = load_surface(input_path)  # validate the input before touching the output
+    out = prepare_output(out, resume)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    device = resolve_device(cfg.device)
+    fitter = Fitter(cfg, surface, device)
+    if resume:
+        state = torch.load(out / CHECKPOINT, map_location=device, weights_only=False)
+        try:
+            fitter.load_state_dict(state)
+        except (RuntimeError, KeyError) as exc:
+            raise MnaError(f"checkpoint in {out} does not match this configuration: {str(exc).splitlines()[0]}") from None
+        log(f"resuming from step {fitter.step} ({fitter.elapsed:.1f} s done)")
+    config_mod.save_yaml(out / CONFIG, run_config_dict(cfg, str(input_path)))
+    log(f"fitting {Path(input_path).name} ({'mesh' if surface.is_mesh else 'point cloud'}) with "
+        f"{cfg.model.charts} chart(s), preset {cfg.preset}, device {device}")
+    t0 = time.perf_counter()
+    interrupted = fitter.run(lambda f: save_checkpoint(out, f, surface.normalization), callback, progress_bar)
+    fit_seconds = time.perf_counter() - t0
+    if interrupted:
+        log(f"interrupted at step {fitter.step}; checkpoint saved to {out / CHECKPOINT} (continue with --resume)")
+        return FitRunResult(out, True, fitter.step, fitter.elapsed, None)
+    # c is part of the model from here on (a buffer saved with the checkpoint)
+    gen = torch.Generator().manual_seed(cfg.seed + 1)
+    fitter.model.c.fill_(float(estimate_c(fitter.model, gen, cfg.c_samples, cfg.eta,
+                                          naive=cfg.ablation.naive_classifier)[0]))
+    save_checkpoint(out, fitter, surface.normalization)
+    metrics = None
+    if extract:
+        metrics = extract_run(out, timings={"fit": fit_seconds, "steps_per_second": fitter.step / max(fitter.elapsed, 1e-9)},
+                              surface=surface, model=fitter.model, cfg=cfg)
+    return FitRunResult(out, False, fitter.step, fitter.elapsed, metrics)
+
+
+def load_model(run: str | Path, device: str = "cpu") -> tuple[NeuralAtlas, FitConfig, Normalization, dict]:
+    """Model (with its fitted c), config and normalisation from a run folder."""
+    run = Path(run)
+    if not (run / CHECKPOINT).is_file():
+        raise MnaError(f"no {CHECKPOINT} in {run}: run `mna fit` first")
+    cfg, _ = load_run_config(run)
+    state = torch.load(run / CHECKPOINT, map_location=device, weights_only=False)
+    model = NeuralAtlas.from_config(cfg.model, cfg.ablation).to(device)
+    model.load_state_dict(state["model"])
+    return model.eval(), cfg, Normalization.from_dict(state["normalization"]), state
+
+
+def extract_run(run: str | Path, points: int | None = None, grid: int | None = None, timings: dict | None = None,
+                surface: Surface | None = None, model: NeuralAtlas | None = None, cfg: FitConfig | None = None,
+                device: str = "cpu") -> dict:
+    """Write points.ply, charts.npz, charts.ply and metrics.json for a fitted run."""
+    run = Path(run)
+    if model is None or cfg is None:
+        model, cfg, _, _ = load_model(run, device)
+    if surface is None:
+        _, input_path = load_run_config(run)
+        surface = load_surface(input_path)
+    norm = surface.normalization
+    n_points = points or cfg.eval_points
+    resolution = grid or cfg.grid
+    if n_points < 1:
+        raise MnaError(f"--points must be positive, got {n_points}")
+    if resolution < 2:
+        raise MnaError(f"--grid must be at least 2, got {resolution}")
+    model.eval()
+    timings = dict(timings or {})
+    t0 = time.perf_counter()
+    gen = torch.Generator().manual_seed(cfg.seed + 2)
+    sample = rejection_sample(model, n_points, gen, cfg.tau)
+    timings["extract_points"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    chart_grid = extract_grid(model, resolution, cfg.tau)
+    timings["extract_mesh"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(cfg.seed + 3)
+    ref = surface.sample(cfg.eval_points, rng)
+    pcl = chamfer_fscore(sample.points, ref)
+    mesh_pts = sample_mesh(chart_grid.vertices, chart_grid.faces, cfg.eval_points, seed=cfg.seed + 4)
+    mesh_m = chamfer_fscore(mesh_pts, ref)
+    dist = atlas_distortion(model, cfg.eval_uv_samples, torch.Generator().manual_seed(cfg.seed + 5), cfg.tau, cfg.loss.eps)
+    timings["metrics"] = time.perf_counter() - t0
+
+    _write_points(run / POINTS, norm.invert(sample.points))
+    _write_charts(run, chart_grid, norm, cfg.tau)
+    metrics = {
+        "chamfer_pcl": pcl.chamfer, "fscore_pcl": pcl.fscore,
+        "chamfer_mesh": mesh_m.chamfer, "fscore_mesh": mesh_m.fscore,
+        "precision_mesh": mesh_m.precision, "recall_mesh": mesh_m.recall,
+        "distortion_metric": dist.distortion_metric, "distortion_conformal": dist.distortion_conformal,
+        "distortion_area": dist.distortion_area, "occupancy_rate": dist.occupancy_rate,
+        "degenerate_charts": dist.degenerate_charts,
+        "charts": cfg.model.charts, "c": float(model.c), "points": int(len(sample.points)),
+        "acceptance_rate": sample.acceptance, "mesh_faces": int(len(chart_grid.faces)),
+        "normalization": norm.to_dict(), "input": surface.path,
+        "device": str(next(model.parameters()).device), "torch": torch.__version__,
+        "machine": f"{platform.machine()} {os.cpu_count()} cpu",
+    }
+    old = {}
+    if (run / METRICS).is_file():
+        old = json.loads((run / METRICS).read_text())
+    metrics["timings"] = {**old.get("timings", {}), **timings}
+    write_json(run / METRICS, metrics)
+    return metrics
+
+
+def _write_points(path: Path, points: np.ndarray) -> None:
+    with atomic_path(path) as tmp:
+        trimesh.PointCloud(points).export(tmp)
+
+
+def _write_charts(run: Path, g, norm: Normalization, tau: float) -> None:
+    K, G = g.xyz.shape[:2]
+    xyz_in = norm.invert(g.xyz.reshape(-1, 3)).reshape(K, G, G, 3)
+    verts_in = norm.invert(g.vertices)
+    with atomic_path(run / CHARTS) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(
+                fh, uv=g.uv.astype(np.float32), xyz=xyz_in.astype(np.float32), occ=g.occ.astype(np.float32),
+                tau=np.float64(tau), center=norm.center.astype(np.float64), scale=np.float64(norm.scale),
+                vertices=verts_in.astype(np.float32), faces=g.faces.astype(np.int64),
+                vertex_uv=g.vertex_uv.astype(np.float32), vertex_chart=g.vertex_chart.astype(np.int64),
+                face_chart=g.face_chart.astype(np.int64), grid_index=g.grid_index.astype(np.int64),
+            )
+    with atomic_path(run / CHARTS_PLY) as tmp:
+        trimesh.Trimesh(verts_in, g.faces, process=False).export(tmp)
