@@ -1,0 +1,75 @@
+"""UV islands (charts) and UV/3D edge topology of a per-vertex UV mesh.
+
+Two faces are in the same island when they share an edge *in UV*: both endpoints at
+identical UV coordinates (and, when positions are given, on identical 3D points).
+Vertex indices are not trusted, so duplicated-but-coincident vertices still connect and
+two islands that merely overlap in UV stay apart.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+
+def _point_ids(values: np.ndarray) -> np.ndarray:
+    """(V,) id per row of ``values``, equal iff the rows are exactly equal."""
+    _, ids = np.unique(np.asarray(values), axis=0, return_inverse=True)
+    return ids.reshape(-1)
+
+
+def half_edges(faces: np.ndarray) -> np.ndarray:
+    """(3F, 2) directed edges ``(f0,f1), (f1,f2), (f2,f0)`` of each face, face-major."""
+    faces = np.asarray(faces, np.int64)
+    return np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+
+
+def edge_keys(ids: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(3F,) integer key of each undirected half-edge, from per-vertex point ``ids``."""
+    e = ids[half_edges(faces)]
+    lo, hi = e.min(1), e.max(1)
+    return lo * (int(ids.max()) + 1) + hi
+
+
+def uv_point_ids(uv: np.ndarray, weld: np.ndarray | None = None) -> np.ndarray:
+    """(V,) id of each vertex's UV point (combined with its 3D point id ``weld`` if given)."""
+    uv = np.asarray(uv, np.float64)
+    if weld is None:
+        return _point_ids(uv)
+    return _point_ids(np.column_stack([uv, np.asarray(weld, np.float64)]))
+
+
+def uv_islands(faces: np.ndarray, uv: np.ndarray, weld: np.ndarray | None = None) -> np.ndarray:
+    """(F,) island id per face, ids ``0..n-1`` numbered by first face.
+
+    Args:
+        faces: (F, 3) int vertex indices.
+        uv: (V, 2) per-vertex UVs.
+        weld: optional (V,) 3D point id per vertex (see ``uvmesh.weld_ids``).
+
+    Example: two triangles sharing a UV edge form one island; move one of them in UV
+    (same vertex indices impossible then, so duplicate its vertices) and they form two.
+    """
+    faces = np.asarray(faces, np.int64)
+    F = len(faces)
+    if F == 0:
+        return np.zeros(0, np.int64)
+    keys = edge_keys(uv_point_ids(uv, weld), faces)
+    face_of = np.repeat(np.arange(F), 3)
+    order = np.argsort(keys, kind="stable")
+    ks, fs = keys[order], face_of[order]
+    same = ks[1:] == ks[:-1]
+    a, b = fs[:-1][same], fs[1:][same]
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(F, F))
+    _, labels = connected_components(graph, directed=False)
+    # renumber by first occurrence so ids are deterministic and start at face 0
+    _, first = np.unique(labels, return_index=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[labels]
+
+
+def edge_use_counts(keys: np.ndarray) -> np.ndarray:
+    """(len(keys),) how many half-edges share each half-edge's key."""
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    return counts[inverse.reshape(-1)]
