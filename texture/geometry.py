@@ -70,23 +70,46 @@ class MeshProjector:
         self.vertices = np.asarray(vertices, np.float64)
         self.faces = np.asarray(faces, np.int64)
         self.k = int(min(k, len(self.faces)))
-        self.tree = cKDTree(self.vertices[self.faces].mean(1))
+        tri = self.vertices[self.faces]
+        centroid = tri.mean(1)
+        self.tree = cKDTree(centroid)
+        #: largest centroid-to-corner distance: a point within d of a face is within d + this of its centroid
+        self.radius = float(np.linalg.norm(tri - centroid[:, None], axis=2).max()) if len(tri) else 0.0
         keys = edge_keys(np.arange(len(self.vertices)), self.faces)
         # boundary[f, i]: the edge opposite corner i of face f is used by one face only
         open_edge = (edge_use_counts(keys) == 1).reshape(-1, 3)  # edge j joins corners j, j+1
         self.boundary = open_edge[:, [1, 2, 0]]
 
-    def project(self, points: np.ndarray, chunk: int = 200_000) -> Projection:
+    def project(self, points: np.ndarray, max_distance: float | None = None, chunk: int = 200_000) -> Projection:
+        """Closest points; with ``max_distance`` points farther than it get ``distance = inf``, face -1.
+
+        The bound makes far queries cheap (a KD-tree k-NN search far from the data is slow).
+        """
         points = np.asarray(points, np.float64)
-        parts = [self._project(points[i:i + chunk]) for i in range(0, max(len(points), 1), chunk)]
+        parts = [self._project(points[i:i + chunk], max_distance) for i in range(0, max(len(points), 1), chunk)]
         return Projection(*(np.concatenate([p[j] for p in parts]) for j in range(5)))
 
-    def _project(self, p: np.ndarray):
+    def _project(self, p: np.ndarray, max_distance: float | None):
         n, k = len(p), self.k
+        empty = (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, bool))
         if n == 0:
-            return np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, bool)
+            return empty
+        if max_distance is not None:
+            _, cand = self.tree.query(p, k=k, distance_upper_bound=max_distance + self.radius)
+            cand = cand.reshape(n, k)
+            near = cand[:, 0] < len(self.faces)
+            out = (np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1), np.zeros((n, 3)), np.zeros(n, bool))
+            if near.any():
+                sub = self._exact(p[near], np.where(cand[near] < len(self.faces), cand[near], cand[near][:, :1]))
+                for o, v in zip(out, sub):
+                    o[near] = v
+                out[1][near & (out[1] > max_distance)] = np.inf
+            return out
         _, cand = self.tree.query(p, k=k)
-        cand = cand.reshape(n, k)
+        return self._exact(p, cand.reshape(n, k))
+
+    def _exact(self, p: np.ndarray, cand: np.ndarray):
+        n, k = cand.shape
         tri = self.vertices[self.faces[cand.ravel()]]
         q, bary = closest_point_on_triangles(np.repeat(p, k, 0), tri[:, 0], tri[:, 1], tri[:, 2])
         d = np.linalg.norm(q - np.repeat(p, k, 0), axis=1).reshape(n, k)

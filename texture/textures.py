@@ -1,0 +1,207 @@
+"""Textures for a UV atlas: checkerboard, UV grid, baking from the input, gutter dilation, image I/O.
+
+Images are float arrays ``(H, W, C)`` in [0, 1], row 0 at the *top* (v = 1); texel
+``(r, c)`` has its centre at ``uv = ((c + 0.5) / W, 1 - (r + 0.5) / H)`` (see
+``texture.raster``). Files are read and written with OpenImageIO: PNG as 8-bit,
+EXR as 32-bit float.
+
+Same-size checker squares on every method: the checker is drawn in UV with
+``frequency`` squares per UV unit, chosen as ``uv_per_length / square_size`` where
+``uv_per_length = sqrt(sum |UV area| / sum 3D area)`` (unit-ball frame). A square then
+covers ``square_size`` of surface length on average, whatever the atlas's UV scale,
+so our atlas and xatlas show squares of the same 3D size.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from mna.atomic import atomic_path
+from mna.errors import InputError
+
+from .raster import face_id_image
+from .uvmesh import UVMesh
+
+#: default checker square: 0.1 of the unit ball (20 squares across the diameter).
+SQUARE_SIZE = 0.1
+#: smallest checker square in texels (a finer checker aliases).
+MIN_SQUARE_TEXELS = 4
+LIGHT, DARK = np.array([0.92, 0.92, 0.92]), np.array([0.25, 0.32, 0.45])
+
+
+def check_size(size) -> int:
+    """Validate a texture size: a positive integer (int or digit string), at most 16384."""
+    if isinstance(size, (int, np.integer)) and not isinstance(size, bool):
+        value = int(size)
+    elif isinstance(size, str) and size.strip().lstrip("+-").isdigit():
+        value = int(size.strip())
+    else:
+        raise InputError(f"texture size must be a positive integer, got {size!r}")
+    if value <= 0:
+        raise InputError(f"texture size must be a positive integer, got {size!r}")
+    if value > 16384:
+        raise InputError(f"texture size {value} is too large (max 16384)")
+    return value
+
+
+def uv_per_length(mesh_unit: UVMesh) -> float:
+    """``sqrt(sum |UV area| / sum 3D area)``: UV length per unit of surface length."""
+    t = mesh_unit.uv[mesh_unit.faces]
+    p = mesh_unit.vertices[mesh_unit.faces]
+    uv_area = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+                           - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])).sum()
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+    return float(np.sqrt(uv_area / area))
+
+
+def checker_frequency(mesh_unit: UVMesh, size: int, square_size: float = SQUARE_SIZE) -> float:
+    """Squares per UV unit so a square spans ``square_size`` of surface (clamped to >= 4 texels)."""
+    return float(min(uv_per_length(mesh_unit) / square_size, size / MIN_SQUARE_TEXELS))
+
+
+def texel_centers(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W) arrays ``u``, ``v`` of texel centres (row 0 = top = v near 1)."""
+    u = (np.arange(width) + 0.5) / width
+    v = 1.0 - (np.arange(height) + 0.5) / height
+    return np.meshgrid(u, v, indexing="xy")
+
+
+def checker_image(size: int, frequency: float) -> np.ndarray:
+    """(size, size, 3) checkerboard with ``frequency`` squares per UV unit; square (0,0) is light."""
+    u, v = texel_centers(size, size)
+    odd = (np.floor(u * frequency) + np.floor(v * frequency)).astype(np.int64) % 2 == 1
+    return np.where(odd[..., None], DARK, LIGHT)
+
+
+def uvgrid_image(size: int, frequency: float, line_texels: float = 1.5) -> np.ndarray:
+    """(size, size, 3) UV grid: red = u, green = v (orientation), dark lines every 1/frequency."""
+    u, v = texel_centers(size, size)
+    img = np.stack([0.25 + 0.7 * u, 0.25 + 0.7 * v, np.full_like(u, 0.6)], -1)
+    width = line_texels / size * frequency  # line width in grid-cell units
+    fu, fv = (u * frequency) % 1.0, (v * frequency) % 1.0
+    line = (np.minimum(fu, 1 - fu) < width / 2) | (np.minimum(fv, 1 - fv) < width / 2)
+    img[line] = 0.1
+    return img
+
+
+def dilate(image: np.ndarray, mask: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """Grow ``image`` from ``mask`` into empty texels, ``iterations`` rings (mean of set 8-neighbours).
+
+    Bilinear lookups near an island border then read the island's colours, not the
+    background. Returns ``(image, grown mask)``.
+    """
+    img = np.where(mask[..., None], image, 0.0).astype(np.float64)
+    m = mask.astype(np.float64)
+    kernel = np.ones((3, 3))
+    for _ in range(int(iterations)):
+        if m.all():
+            break
+        count = ndimage.convolve(m, kernel, mode="constant")
+        acc = np.stack([ndimage.convolve(img[..., c] * m, kernel, mode="constant") for c in range(img.shape[-1])], -1)
+        grow = (m == 0) & (count > 0)
+        img[grow] = acc[grow] / count[grow][:, None]
+        m[grow] = 1.0
+    return img, m > 0
+
+
+def coverage_mask(mesh: UVMesh, size: int) -> np.ndarray:
+    """(size, size) bool: texel centres inside some face of ``mesh`` (boundary inclusive)."""
+    face, _ = face_id_image(mesh.uv[mesh.faces], size, size)
+    return face >= 0
+
+
+def bake(mesh_unit: UVMesh, source, size: int, padding: int = 8, background=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Transfer the colour of ``source`` (trimesh, same frame) onto the atlas of ``mesh_unit``.
+
+    Each covered texel maps through its face's barycentrics to a 3D point, which is
+    projected on ``source``; the colour there is the barycentric blend of the source's
+    vertex colours, or a bilinear lookup of its texture through its own UVs. The result
+    is dilated ``padding`` texels into the gutters. Returns (size, size, 3) float.
+    """
+    from .geometry import MeshProjector
+
+    colors, uv_src, image = _source_colors(source)
+    face, bary = face_id_image(mesh_unit.uv[mesh_unit.faces], size, size)
+    mask = face >= 0
+    pts = (bary[mask][:, :, None] * mesh_unit.vertices[mesh_unit.faces[face[mask]]]).sum(1)
+    proj = MeshProjector(np.asarray(source.vertices), np.asarray(source.faces)).project(pts)
+    corners = np.asarray(source.faces)[proj.face]
+    if colors is not None:
+        rgb = (proj.bary[:, :, None] * colors[corners]).sum(1)
+    else:
+        st = (proj.bary[:, :, None] * uv_src[corners]).sum(1)
+        rgb = sample_bilinear(image, st)
+    out = np.zeros((size, size, 3))
+    out[:] = background
+    out[mask] = rgb[:, :3]
+    out, _ = dilate(out, mask, padding)
+    return np.clip(out, 0.0, 1.0)
+
+
+def _source_colors(source):
+    """(vertex colours (V, 3) float | None, uv (V, 2) | None, image | None) of a trimesh."""
+    visual = source.visual
+    if getattr(visual, "kind", None) == "texture" and getattr(visual, "uv", None) is not None:
+        img = getattr(visual.material, "image", None) or getattr(visual.material, "baseColorTexture", None)
+        if img is not None:
+            arr = np.asarray(img.convert("RGB"), np.float64) / 255.0
+            return None, np.asarray(visual.uv, np.float64), arr
+    if getattr(visual, "kind", None) == "vertex":
+        return np.asarray(visual.vertex_colors, np.float64)[:, :3] / 255.0, None, None
+    raise InputError("the input mesh has neither vertex colours nor a texture to bake; use --texture checker or uvgrid")
+
+
+def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of ``image (H, W, C)`` at ``uv (N, 2)`` (texel centres, clamp to edge)."""
+    H, W = image.shape[:2]
+    x = np.clip(uv[:, 0] * W - 0.5, 0, W - 1)
+    y = np.clip((1.0 - uv[:, 1]) * H - 0.5, 0, H - 1)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, W - 1), np.minimum(y0 + 1, H - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    top = image[y0, x0] * (1 - fx) + image[y0, x1] * fx
+    bottom = image[y1, x0] * (1 - fx) + image[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def write_image(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write ``image (H, W, C)`` float [0,1] atomically: 8-bit for PNG/JPEG, float32 for EXR."""
+    import OpenImageIO as oiio
+
+    path = Path(path)
+    image = np.ascontiguousarray(image)
+    is_float = path.suffix.lower() in (".exr", ".hdr", ".tif", ".tiff")
+    data = image.astype(np.float32) if is_float else np.round(np.clip(image, 0, 1) * 255).astype(np.uint8)
+    fmt = oiio.FLOAT if is_float else oiio.UINT8
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None:
+            raise InputError(f"cannot write image {path}: {oiio.geterror()}")
+        spec = oiio.ImageSpec(data.shape[1], data.shape[0], data.shape[2], fmt)
+        ok = out.open(str(tmp), spec) and out.write_image(data)
+        out.close()
+        if not ok:
+            raise InputError(f"cannot write image {path}: {out.geterror()}")
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image as float (H, W, C) in [0, 1] (8-bit scaled by 1/255, float as stored)."""
+    import OpenImageIO as oiio
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"image not found: {path}")
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise InputError(f"cannot read image {path}: {oiio.geterror().strip() or 'unknown format'}")
+    try:
+        data = inp.read_image(oiio.FLOAT)
+    finally:
+        inp.close()
+    if data is None or not isinstance(data, np.ndarray) or data.size == 0:
+        raise InputError(f"cannot read image {path}: no pixel data")
+    data = np.asarray(data, np.float64)
+    return data if data.ndim == 3 else data[..., None]
