@@ -63,8 +63,8 @@ class RenderOptions:
     """also write pyrender previews with the same cameras."""
     variant: str | None = None
     """Mitsuba variant; None = best available (cuda, llvm, scalar)."""
-    preset: str | None = None
-    """built-in preset name or a YAML/JSON file; None = studio."""
+    preset: str | Preset | None = None
+    """built-in preset name, a YAML/JSON file, or a ``Preset``; None = studio."""
     seed: int = 0
     heat_max: float | None = None
     """fix the top of the distortion colour scale (to share it across runs)."""
@@ -274,7 +274,7 @@ def render_record(result: MeshRender, opts: RenderOptions, preset: Preset, frami
     mi = import_mitsuba()
     return {
         "label": result.label, "renderer": f"mitsuba {mi.__version__}", "variant": result.variant,
-        "warnings": result.warnings, "options": dataclasses.asdict(opts), "preset": preset_to_dict(preset),
+        "warnings": result.warnings, "options": {**dataclasses.asdict(opts), "preset": preset.name}, "preset": preset_to_dict(preset),
         "bounding_sphere": {"center": framing.sphere.center.tolist(), "radius": framing.sphere.radius},
         "checker_square_size": framing.square_size, "checker_squares_per_uv_unit": result.checker_frequency,
         "heat_ranges": {k: dataclasses.asdict(v) for k, v in result.heat_ranges.items()},

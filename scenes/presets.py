@@ -226,8 +226,13 @@ def preset_from_dict(data: dict, source: str = "<dict>") -> Preset:
     return _check(_build(Preset, source, "", data), source)
 
 
-def load_preset(name_or_path: str | Path | None = None) -> Preset:
-    """Load a built-in preset by name (``studio``, ``plain``) or a user's YAML/JSON file."""
+def load_preset(name_or_path: str | Path | Preset | None = None) -> Preset:
+    """Load a built-in preset by name (``studio``, ``plain``) or a user's YAML/JSON file.
+
+    A ``Preset`` instance is returned as it is (so code can pass a modified preset).
+    """
+    if isinstance(name_or_path, Preset):
+        return name_or_path
     if name_or_path is None:
         name_or_path = DEFAULT_PRESET
     text_name = str(name_or_path)
