@@ -8,8 +8,9 @@ stretch by fitting, per island, the rigid motion (rotation or reflection + trans
 that maps its input UVs onto xatlas's at xatlas's single scale ``texels_per_unit``, and
 apply that exactly. So every island keeps its shape and all share one scale.
 
-The atlas is square: the resolution is fixed and ``texels_per_unit`` is searched
-(bisection) for the largest value whose islands fit in one ``resolution^2`` atlas.
+The atlas is square: xatlas first packs at a guessed scale into an unbounded atlas,
+the scale is set so that atlas's larger side matches ``resolution``, and the islands are
+packed again into the fixed ``resolution^2`` square (shrinking by 3 % until they fit).
 """
 from __future__ import annotations
 
@@ -91,22 +92,19 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     face_area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
                              - (tri[:, 1, 1] - tri[:, 0, 1]) * (tri[:, 2, 0] - tri[:, 0, 0]))
     uv_area = face_area.sum()
-    # start near 60 % utilisation and bisect on log(tpu) for the largest that fits in one atlas
-    hi_tpu = resolution * np.sqrt(1.0 / uv_area)
-    lo_tpu = resolution * np.sqrt(0.05 / uv_area)
+    # 1) let the atlas grow freely at a guess of the scale, 2) rescale so its larger side
+    # fits the resolution, 3) pack into the fixed square, shrinking 3 % until it fits
     tpu = resolution * np.sqrt(0.6 / uv_area)
-    best, attempts = None, 0
+    free = _xatlas_pack(uv, faces, island, 0, padding, tpu)
+    tpu *= (resolution - 1) / max(free.width, free.height, 1)
+    best, attempts = None, 1
     while attempts < max_attempts:
         attempts += 1
         atlas = _xatlas_pack(uv, faces, island, resolution, padding, tpu)
-        fits = atlas.atlas_count == 1 and atlas.width <= resolution and atlas.height <= resolution
-        if fits:
-            best, lo_tpu = (atlas, tpu), tpu
-        else:
-            hi_tpu = tpu
-        if best is not None and hi_tpu / lo_tpu < 1.01:
+        if atlas.atlas_count == 1 and atlas.width <= resolution and atlas.height <= resolution:
+            best = (atlas, tpu)
             break
-        tpu = np.sqrt(lo_tpu * hi_tpu)
+        tpu *= 0.97
     if best is None:
         raise RuntimeError(f"xatlas could not pack {n_isl} islands into one {resolution}^2 atlas")
     atlas, tpu = best

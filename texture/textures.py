@@ -123,7 +123,7 @@ def bake(mesh_unit: UVMesh, source, size: int, padding: int = 8, background=(0.0
     """
     from .geometry import MeshProjector
 
-    colors, uv_src, image = _source_colors(source)
+    colors, uv_src, image = source_colors(source)
     face, bary = face_id_image(mesh_unit.uv[mesh_unit.faces], size, size)
     mask = face >= 0
     pts = (bary[mask][:, :, None] * mesh_unit.vertices[mesh_unit.faces[face[mask]]]).sum(1)
@@ -141,7 +141,7 @@ def bake(mesh_unit: UVMesh, source, size: int, padding: int = 8, background=(0.0
     return np.clip(out, 0.0, 1.0)
 
 
-def _source_colors(source):
+def source_colors(source):
     """(vertex colours (V, 3) float | None, uv (V, 2) | None, image | None) of a trimesh."""
     visual = source.visual
     if getattr(visual, "kind", None) == "texture" and getattr(visual, "uv", None) is not None:

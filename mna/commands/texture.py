@@ -1,5 +1,105 @@
-"""`mna` subcommands of the texture stage (not wired yet)."""
+"""``mna export``, ``mna uv`` and ``mna compare``: the texture stage (package ``texture``)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from mna.errors import MnaError
 
 
 def register(subparsers) -> None:
     """Add this group's subcommands to the `mna` parser."""
+    e = subparsers.add_parser("export", help="pack the run's charts into one UV atlas and write a textured OBJ/GLB",
+                              description="Trim overlapping charts, cut clean borders, pack all islands at one texel "
+                                          "density and write RUN/mesh.obj, mesh.mtl, mesh_texture.png, mesh.glb and "
+                                          "RUN/atlas.json (input coordinate frame).")
+    e.add_argument("run", metavar="RUN", help="run folder with charts.npz (from mna fit / mna extract)")
+    e.add_argument("--texture", default="checker", choices=["checker", "uvgrid", "bake"],
+                   help="checker (default), uvgrid, or bake the input mesh's colours/texture")
+    e.add_argument("--size", default="2048", help="texture size in texels (default 2048)")
+    e.add_argument("--padding", default="8", help="gutter around each island in texels (default 8)")
+    e.add_argument("--square-size", type=float, default=None,
+                   help="checker square size in the unit-ball frame (default 0.05)")
+    e.set_defaults(func=run_export)
+
+    u = subparsers.add_parser("uv", help="UV-map any mesh with xatlas and write a textured OBJ/GLB + metrics",
+                              description="UV-map MESH with xatlas; writes OUT/mesh.obj, mesh.mtl, mesh_texture.png, "
+                                          "mesh.glb and OUT/metrics.json (the texture harness).")
+    u.add_argument("mesh", metavar="MESH", help="triangle mesh (.obj .ply .off .stl .glb)")
+    u.add_argument("-o", "--out", required=True, metavar="OUT", help="output folder")
+    u.add_argument("--method", default="xatlas", choices=["xatlas"], help="UV method (only xatlas)")
+    u.add_argument("--max-cost", type=float, default=2.0, help="xatlas chart growth cost limit (default 2)")
+    u.add_argument("--max-iterations", type=int, default=1, help="xatlas segmentation iterations (default 1)")
+    u.add_argument("--max-chart-area", type=float, default=0.0, help="largest chart area, unit-ball frame (0: none)")
+    u.add_argument("--max-boundary-length", type=float, default=0.0,
+                   help="largest chart boundary, unit-ball frame (0: none)")
+    u.add_argument("--resolution", type=int, default=2048, help="atlas resolution in texels (default 2048)")
+    u.add_argument("--padding", type=int, default=8, help="gutter in texels (default 8)")
+    u.add_argument("--brute-force", action="store_true", help="slower, tighter packing")
+    u.add_argument("--input-units", action="store_true",
+                   help="give xatlas the mesh in its own units instead of the unit-ball frame")
+    u.add_argument("--texture", default="checker", choices=["checker", "uvgrid", "bake"])
+    u.add_argument("--size", default=None, help="texture size (default: --resolution)")
+    u.set_defaults(func=run_uv)
+
+    c = subparsers.add_parser("compare", help="our atlas vs xatlas on the same mesh, one harness: compare.json/.md",
+                              description="Run xatlas on the run's reconstructed mesh (RUN/xatlas/) and on the input "
+                                          "mesh, sweep xatlas's max_cost/max_iterations, and tabulate every method "
+                                          "with one harness into RUN/compare.json and RUN/compare.md.")
+    c.add_argument("run", metavar="RUN")
+    c.add_argument("--no-sweep", action="store_true", help="skip the xatlas max_cost/max_iterations sweep")
+    c.add_argument("--size", default="2048", help="texture size for exports (default 2048)")
+    c.add_argument("--padding", default="8", help="gutter in texels (default 8)")
+    c.set_defaults(func=run_compare)
+
+
+def _int_arg(value: str, name: str, minimum: int) -> int:
+    try:
+        v = int(str(value).strip())
+    except ValueError:
+        raise MnaError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
+    if v < minimum:
+        raise MnaError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return v
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from texture.pipeline import export_run
+    from texture.textures import check_size
+
+    size = check_size(args.size)
+    padding = _int_arg(args.padding, "--padding", 0)
+    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size)
+    a, m = r["atlas"], r["uv_metrics"]
+    print(f"atlas: {a['islands']} islands from {a['charts_used']} charts, seam length {m['seam_length']:.2f}, "
+          f"distortion_metric {m['distortion_metric']:.3f}, utilization {a['utilization']:.2f}, "
+          f"doubly covered {a['doubly_covered_percent']:.2f} %, fscore drop {a.get('fscore_drop', float('nan')):.2f}"
+          f" -> {Path(args.run) / 'mesh.obj'}, mesh.glb")
+    return 0
+
+
+def run_uv(args: argparse.Namespace) -> int:
+    from texture.pipeline import uv_mesh_file
+    from texture.xatlas_uv import XatlasOptions
+
+    opts = XatlasOptions(max_cost=args.max_cost, max_iterations=args.max_iterations,
+                         max_chart_area=args.max_chart_area, max_boundary_length=args.max_boundary_length,
+                         resolution=args.resolution, padding=args.padding, brute_force=args.brute_force,
+                         normalize=not args.input_units)
+    r = uv_mesh_file(args.mesh, args.out, opts, texture=args.texture, size=args.size)
+    m = r["uv_metrics"]
+    print(f"xatlas: {m['charts']} charts, seam length {m['seam_length']:.2f}, distortion_metric "
+          f"{m['distortion_metric']:.3f}, utilization {m['utilization']:.2f} in {r['timings']['xatlas']:.2f} s "
+          f"-> {Path(args.out) / 'mesh.obj'}")
+    return 0
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    from texture.compare import compare_run
+    from texture.textures import check_size
+
+    size = check_size(args.size)
+    padding = _int_arg(args.padding, "--padding", 0)
+    r = compare_run(args.run, sweep=not args.no_sweep, size=size, padding=padding)
+    print(f"compared {len(r['methods'])} methods -> {Path(args.run) / 'compare.md'}")
+    return 0

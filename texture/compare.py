@@ -1,0 +1,142 @@
+"""``mna compare``: our atlas vs xatlas on the same mesh, every method through one harness.
+
+Methods (rows of ``RUN/compare.md``):
+
+- ``mna``: our packed atlas (``mna export``; built first if ``RUN/atlas.json`` is missing
+  or older than ``charts.npz``);
+- ``xatlas``: xatlas (defaults, our padding/resolution) on the *same* reconstructed mesh,
+  written to ``RUN/xatlas/`` like an export;
+- ``xatlas_input``: xatlas on the input mesh (when the input is a mesh), ``RUN/xatlas_input/``;
+- ``sweep``: xatlas over ``max_cost`` x ``max_iterations`` (chart count vs distortion),
+  on the input mesh when there is one (same surface, far fewer faces), else on the
+  reconstruction.
+
+Every row is measured by :func:`texture.harness.measure` with the same reference
+(the input mesh when there is one) and the same unit-ball frame (charts.npz's).
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mna.atomic import write_json, write_text
+from mna.errors import InputError
+
+from .charts import load_charts
+from .export import export_textured, read_back
+from .harness import measure
+from .pipeline import export_run, load_input, make_texture
+from .xatlas_uv import XatlasOptions, unwrap
+
+SWEEP_MAX_COST = (0.5, 2.0, 8.0, 64.0, 1e4)
+SWEEP_MAX_ITERATIONS = (1, 4)
+COLUMNS = (("charts", "charts", "{:d}"), ("seam_length", "seam length", "{:.2f}"),
+           ("distortion_metric", "distortion metric", "{:.3f}"), ("distortion_conformal", "conformal", "{:.3f}"),
+           ("distortion_area", "area", "{:.3f}"), ("flipped_area_percent", "flipped %", "{:.3f}"),
+           ("folded_area_percent", "folded %", "{:.3f}"), ("uv_overlap_percent", "overlap %", "{:.3f}"),
+           ("utilization", "utilization", "{:.2f}"))
+
+
+def _fresh_export(run: Path) -> bool:
+    atlas, charts, obj = run / "atlas.json", run / "charts.npz", run / "mesh.obj"
+    return atlas.is_file() and obj.is_file() and atlas.stat().st_mtime >= charts.stat().st_mtime
+
+
+def _row(method: str, mesh_name: str, summary: dict, seconds: float, extra: dict | None = None) -> dict:
+    return {"method": method, "mesh": mesh_name, "seconds": seconds, **summary, **(extra or {})}
+
+
+def _xatlas_row(method, mesh_name, vertices, faces, opts, folder, harness_kw, size, check):
+    res = unwrap(vertices, faces, opts, check=check)
+    norm = harness_kw["normalization"]
+    row_extra = {"xatlas_charts": res.charts, "xatlas_utilization": res.utilization,
+                 "max_cost": opts.max_cost, "max_iterations": opts.max_iterations}
+    if folder is not None:
+        image = make_texture("checker", res.mesh.transformed(norm), size, opts.padding)
+        export_textured(folder, res.mesh, image)
+    m = measure(res.mesh, **harness_kw)
+    if folder is not None:
+        write_json(Path(folder) / "metrics.json", {"method": method, "options": res.options, "uv_metrics": m.summary,
+                                                   "timings": {"xatlas": res.seconds}, **row_extra})
+    return _row(method, mesh_name, m.summary, res.seconds, row_extra)
+
+
+def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, padding: int = 8) -> dict:
+    """Write ``RUN/compare.json`` and ``RUN/compare.md`` (see module docstring); returns the JSON content."""
+    run = Path(run)
+    if not run.is_dir():
+        raise InputError(f"run folder not found: {run}")
+    charts = load_charts(run / "charts.npz")
+    norm = charts.normalization
+    if not _fresh_export(run):
+        export_run(run, size=size, padding=padding)
+    import json
+
+    atlas_info = json.loads((run / "atlas.json").read_text())
+    ours = read_back(run / "mesh.obj")
+    mesh_in, _ = load_input(run)
+    harness_kw = {"reference": mesh_in, "normalization": norm, "reference_is_closed": mesh_in is None}
+    rows = []
+    m = measure(ours, **harness_kw)
+    t = atlas_info["timings"]
+    rows.append(_row("mna", "reconstruction", m.summary, t["atlas_trim"] + t["atlas_pack"],
+                     {"export_seconds": t["export_total"], "islands": atlas_info["atlas"]["islands"]}))
+    opts = XatlasOptions(resolution=size, padding=padding)
+    rows.append(_xatlas_row("xatlas", "reconstruction", ours.vertices, ours.faces, opts, run / "xatlas",
+                            harness_kw, size, check=False))
+    sweep_mesh = None
+    if mesh_in is not None:
+        rows.append(_xatlas_row("xatlas_input", "input", mesh_in.vertices, mesh_in.faces, opts, run / "xatlas_input",
+                                harness_kw, size, check=True))
+        sweep_mesh = ("input", mesh_in.vertices, mesh_in.faces)
+    else:
+        sweep_mesh = ("reconstruction", ours.vertices, ours.faces)
+    sweep_rows = []
+    if sweep:
+        for it in SWEEP_MAX_ITERATIONS:
+            for cost in SWEEP_MAX_COST:
+                o = XatlasOptions(max_cost=cost, max_iterations=it, resolution=size, padding=padding)
+                sweep_rows.append(_xatlas_row(f"xatlas c={cost:g} it={it}", sweep_mesh[0], sweep_mesh[1],
+                                              sweep_mesh[2], o, None, harness_kw, size, check=False))
+    result = {"run": str(run), "reference": "input mesh" if mesh_in is not None else "none (closed surface assumed)",
+              "normalization": norm.to_json(), "methods": rows, "sweep": sweep_rows,
+              "atlas": atlas_info["atlas"]}
+    write_json(run / "compare.json", result)
+    write_text(run / "compare.md", to_markdown(result))
+    return result
+
+
+def _fmt(value, spec):
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return "-"
+    return spec.format(value)
+
+
+def table(rows: list[dict]) -> str:
+    """Markdown table of harness rows (method, mesh, COLUMNS, seconds)."""
+    head = ["method", "mesh", "faces"] + [c[1] for c in COLUMNS] + ["time s"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        cells = [r["method"], r["mesh"], str(r["faces"])] + [_fmt(r.get(k), s) for k, _, s in COLUMNS]
+        cells.append(_fmt(r.get("seconds"), "{:.2f}"))
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def to_markdown(result: dict) -> str:
+    a = result["atlas"]
+    parts = [f"# compare: {result['run']}", "",
+             "One harness (texture.harness.measure) for every row; unit-ball frame; reference: "
+             f"{result['reference']}. Seam length = 3D length of cut edges / sqrt(area); distortions as in DESIGN "
+             "(UV-area weighted); flipped/folded in % of 3D area; time = UV method only (ours: trim + pack).", "",
+             table(result["methods"]), "",
+             f"Our atlas: {a['islands']} islands from {a['charts_used']} charts, doubly covered "
+             f"{a['doubly_covered_percent']:.2f} % of the area (before trimming "
+             f"{a['doubly_covered_percent_before']:.1f} %), F-score drop {a.get('fscore_drop', float('nan')):.2f} points.",
+             ""]
+    if result["sweep"]:
+        parts += ["## xatlas sweep (max_cost x max_iterations)", "", table(result["sweep"]), ""]
+    return "\n".join(parts)

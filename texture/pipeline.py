@@ -1,0 +1,176 @@
+"""Run-level entry points: ``export_run`` (charts -> textured asset) and ``uv_mesh_file`` (xatlas).
+
+These are what ``mna export`` / ``mna uv`` (and ``mna demo``) call. ``compare_run`` lives
+in :mod:`texture.compare`.
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mna.atomic import write_json
+from mna.errors import InputError
+
+from .atlas import AtlasConfig, build_atlas
+from .charts import load_charts
+from .export import export_textured
+from .harness import measure
+from .textures import bake, check_size, source_colors, checker_frequency, checker_image, uvgrid_image
+from .uvmesh import Normalization, UVMesh, load_uv_mesh, unit_ball_normalization
+from .xatlas_uv import XatlasOptions, check_mesh, unwrap
+
+TEXTURES = ("checker", "uvgrid", "bake")
+
+
+def load_input(run: str | os.PathLike):
+    """The run's input from ``RUN/config.yaml`` key ``input``: ``(trimesh | None, points | None)``, input frame.
+
+    A mesh file gives a trimesh (with its colours/texture); a point cloud gives points;
+    a missing or unreadable input gives ``(None, None)`` (the input is optional here).
+    """
+    import trimesh
+    import yaml
+
+    cfg_path = Path(run) / "config.yaml"
+    if not cfg_path.is_file():
+        return None, None
+    try:
+        cfg = yaml.safe_load(cfg_path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise InputError(f"cannot parse {cfg_path}: {exc}") from exc
+    path = cfg.get("input") if isinstance(cfg, dict) else None
+    if not path or not Path(path).is_file():
+        return None, None
+    try:
+        loaded = trimesh.load(path, process=False)
+    except Exception:  # not a format trimesh reads (e.g. .xyz/.npy point clouds)
+        return None, _read_points(Path(path))
+    if isinstance(loaded, trimesh.Scene):
+        loaded = loaded.to_mesh() if hasattr(loaded, "to_mesh") else loaded.dump(concatenate=True)
+    if isinstance(loaded, trimesh.Trimesh) and len(loaded.faces):
+        return loaded, None
+    if isinstance(loaded, trimesh.PointCloud):
+        return None, np.asarray(loaded.vertices, np.float64)
+    return None, None
+
+
+def _read_points(path: Path) -> np.ndarray | None:
+    try:
+        if path.suffix == ".npy":
+            pts = np.load(path)
+        elif path.suffix == ".npz":
+            with np.load(path) as z:
+                pts = z[z.files[0]]
+        else:
+            pts = np.loadtxt(path)
+    except (OSError, ValueError):
+        return None
+    pts = np.asarray(pts, np.float64)
+    return pts[:, :3] if pts.ndim == 2 and pts.shape[1] >= 3 else None
+
+
+def reference_points(mesh, points, norm: Normalization, count: int = 25000, seed: int = 0) -> np.ndarray | None:
+    """Unit-frame samples of the input surface (mesh: area-uniform; cloud: as given)."""
+    from .geometry import sample_surface
+
+    if mesh is not None:
+        pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), count, seed)
+        return norm.apply(pts)
+    if points is not None:
+        return norm.apply(points)
+    return None
+
+
+def make_texture(kind: str, mesh_unit: UVMesh, size: int, padding: int, source=None,
+                 square_size: float | None = None) -> np.ndarray:
+    """``checker`` / ``uvgrid`` (3D-size-matched, see textures) or ``bake`` (needs ``source``, unit frame)."""
+    from .textures import SQUARE_SIZE
+
+    if kind not in TEXTURES:
+        raise InputError(f"unknown texture {kind!r}; choose from {', '.join(TEXTURES)}")
+    freq = checker_frequency(mesh_unit, size, square_size or SQUARE_SIZE)
+    if kind == "checker":
+        return checker_image(size, freq)
+    if kind == "uvgrid":
+        return uvgrid_image(size, freq)
+    if source is None:
+        raise InputError("--texture bake needs the run's input mesh (RUN/config.yaml 'input'), which is not a readable mesh")
+    return bake(mesh_unit, source, size, padding)
+
+
+def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str = 2048, padding: int = 8,
+               square_size: float | None = None) -> dict:
+    """Charts of ``RUN/charts.npz`` -> ``RUN/mesh.obj``, ``mesh.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``atlas.json``.
+
+    Returns the ``atlas.json`` content: atlas stats (trim, coverage, packing), harness
+    summary, timings (seconds), written paths.
+    """
+    run = Path(run)
+    size = check_size(size)
+    if isinstance(padding, bool) or int(padding) != padding or padding < 0:
+        raise InputError(f"--padding must be a non-negative integer, got {padding!r}")
+    if texture not in TEXTURES:
+        raise InputError(f"unknown texture {texture!r}; choose from {', '.join(TEXTURES)}")
+    if not run.is_dir():
+        raise InputError(f"run folder not found: {run}")
+    charts = load_charts(run / "charts.npz")
+    t0 = time.perf_counter()
+    mesh_in, points_in = load_input(run)
+    if texture == "bake":
+        if mesh_in is None:
+            raise InputError("--texture bake needs the run's input mesh (RUN/config.yaml 'input'), "
+                             "which is not a readable mesh")
+        source_colors(mesh_in)  # fail before the slow part when there is nothing to bake
+    norm = charts.normalization
+    ref = reference_points(mesh_in, points_in, norm)
+    atlas = build_atlas(charts, AtlasConfig(resolution=size, padding=int(padding)), ref)
+    t1 = time.perf_counter()
+    source = None
+    if texture == "bake":
+        source = mesh_in.copy()
+        source.vertices = norm.apply(mesh_in.vertices)
+    image = make_texture(texture, atlas.mesh_unit, size, int(padding), source, square_size)
+    t2 = time.perf_counter()
+    paths = export_textured(run, atlas.mesh, image)
+    t3 = time.perf_counter()
+    metrics = measure(atlas.mesh, reference=mesh_in, normalization=norm,
+                      reference_is_closed=mesh_in is None)
+    timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.stats.pop("timings").items()},
+               "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
+    timings["export_total"] = t3 - t0
+    result = {"texture": texture, "size": size, "padding": int(padding), "atlas": atlas.stats,
+              "uv_metrics": metrics.summary, "timings": timings, "files": paths}
+    write_json(run / "atlas.json", result)
+    return result
+
+
+def uv_mesh_file(mesh_path: str | os.PathLike, out: str | os.PathLike, options: XatlasOptions | None = None,
+                 texture: str = "checker", size: int | str | None = None, square_size: float | None = None) -> dict:
+    """``mna uv``: xatlas on any mesh file -> ``OUT/mesh.obj/.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``metrics.json``."""
+    opts = (options or XatlasOptions()).validate()
+    size = check_size(size if size is not None else (opts.resolution or 2048))
+    if texture not in TEXTURES:
+        raise InputError(f"unknown texture {texture!r}; choose from {', '.join(TEXTURES)}")
+    _, mesh = load_uv_mesh(mesh_path, require_uv=False)
+    check_mesh(mesh.vertices, mesh.faces, Path(mesh_path).name)
+    if texture == "bake":
+        source_colors(mesh)
+    result = unwrap(mesh.vertices, mesh.faces, opts, check=False)
+    norm = unit_ball_normalization(np.asarray(mesh.vertices)[np.unique(mesh.faces)])
+    result_norm = result.mesh.transformed(norm)
+    source = None
+    if texture == "bake":
+        source = mesh.copy()
+        source.vertices = norm.apply(mesh.vertices)
+    image = make_texture(texture, result_norm, size, opts.padding, source, square_size)
+    paths = export_textured(out, result.mesh, image)
+    metrics = measure(result.mesh, reference=mesh, normalization=norm)
+    out_json = {"method": "xatlas", "input": str(mesh_path), "options": result.options,
+                "xatlas_charts": result.charts, "xatlas_atlas_size": list(result.atlas_size),
+                "xatlas_utilization": result.utilization, "uv_metrics": metrics.summary,
+                "timings": {"xatlas": result.seconds}, "files": paths}
+    write_json(Path(out) / "metrics.json", out_json)
+    return out_json

@@ -1,0 +1,150 @@
+"""UV-map any triangle mesh with xatlas (segmentation + parametrisation + packing).
+
+The mesh is handed to xatlas in the unit-ball frame (so ``max_chart_area`` and
+``max_boundary_length`` are in that frame); the result uses the input positions.
+xatlas normalises its UVs by the atlas's width and height, which stretches them when
+the atlas is not square; we undo that (``uv * (w, h) / max(w, h)``), so the UVs are
+isotropic in texels and fit a square texture of ``max(w, h)`` texels.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from mna.errors import InputError
+
+from .uvmesh import UVMesh, make_uv_mesh, unit_ball_normalization, weld_ids
+
+
+@dataclass
+class XatlasOptions:
+    """The xatlas options exposed by ``mna uv`` (xatlas's defaults unless noted)."""
+
+    max_cost: float = 2.0
+    """Chart growth stops when the cost of adding a face exceeds this (larger = fewer charts)."""
+    max_iterations: int = 1
+    """Chart segmentation refinement iterations."""
+    max_chart_area: float = 0.0
+    """Largest chart area, unit-ball frame (0 = no limit)."""
+    max_boundary_length: float = 0.0
+    """Largest chart boundary length, unit-ball frame (0 = no limit)."""
+    normal_deviation_weight: float = 2.0
+    roundness_weight: float = 0.01
+    straightness_weight: float = 6.0
+    normal_seam_weight: float = 4.0
+    texture_seam_weight: float = 0.5
+    resolution: int = 2048
+    """Target atlas size in texels (ours; xatlas's default 0 picks one from the area)."""
+    padding: int = 8
+    """Texels of gutter around each chart (ours; xatlas's default is 0)."""
+    texels_per_unit: float = 0.0
+    """0 = estimated by xatlas from ``resolution``."""
+    bilinear: bool = True
+    brute_force: bool = False
+    rotate_charts: bool = True
+    normalize: bool = True
+    """Hand xatlas the mesh in the unit-ball frame (its segmentation depends on the mesh's units)."""
+
+    def validate(self) -> "XatlasOptions":
+        if not (np.isfinite(self.max_cost) and self.max_cost > 0):
+            raise InputError(f"--max-cost must be a positive number, got {self.max_cost}")
+        if int(self.max_iterations) < 1:
+            raise InputError(f"--max-iterations must be >= 1, got {self.max_iterations}")
+        if int(self.resolution) != 0 and int(self.resolution) < 16:
+            raise InputError(f"--resolution must be 0 (automatic) or an integer >= 16, got {self.resolution}")
+        if int(self.padding) < 0:
+            raise InputError(f"--padding must be >= 0, got {self.padding}")
+        return self
+
+
+@dataclass
+class XatlasResult:
+    """Output of :func:`unwrap`.
+
+    Attributes:
+        mesh: split-vertex UV mesh in the input frame, UVs in [0,1]^2 (isotropic).
+        vmapping: (V',) input vertex of each output vertex.
+        charts: xatlas's chart count.
+        atlas_size: (width, height) in texels.
+        utilization: xatlas's own utilisation (of width x height).
+        seconds: time of ``generate`` (segmentation + parametrisation + packing).
+    """
+
+    mesh: UVMesh
+    vmapping: np.ndarray
+    charts: int
+    atlas_size: tuple[int, int]
+    utilization: float
+    seconds: float
+    options: dict
+
+
+def check_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> None:
+    """Reject degenerate faces (zero area or a repeated vertex) and non-manifold edges.
+
+    Positions are welded first, so seam duplicates do not count as boundaries.
+    """
+    vertices = np.asarray(vertices, np.float64)
+    faces = np.asarray(faces, np.int64)
+    if len(faces) == 0:
+        raise InputError(f"{name} has no faces")
+    ids = weld_ids(vertices)
+    f = ids[faces]
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    diag = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+    degenerate = repeated | (area <= 1e-14 * diag * diag)
+    if degenerate.any():
+        raise InputError(f"{name} has {int(degenerate.sum())} degenerate face(s) (zero area or a repeated vertex), "
+                         f"first: face {int(np.argmax(degenerate))}")
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    if (counts > 2).any():
+        raise InputError(f"{name} is non-manifold: {int((counts > 2).sum())} edge(s) shared by more than two faces")
+
+
+def unwrap(vertices: np.ndarray, faces: np.ndarray, options: XatlasOptions | None = None,
+           check: bool = True) -> XatlasResult:
+    """UV-map ``(vertices (V,3), faces (F,3))`` with xatlas; see the module docstring."""
+    import xatlas
+
+    opts = (options or XatlasOptions()).validate()
+    vertices = np.asarray(vertices, np.float64)
+    faces = np.asarray(faces, np.int64)
+    if check:
+        check_mesh(vertices, faces)
+    norm = unit_ball_normalization(vertices[np.unique(faces)])
+    positions = norm.apply(vertices) if opts.normalize else vertices
+    co = xatlas.ChartOptions()
+    co.max_cost = float(opts.max_cost)
+    co.max_iterations = int(opts.max_iterations)
+    co.max_chart_area = float(opts.max_chart_area)
+    co.max_boundary_length = float(opts.max_boundary_length)
+    co.normal_deviation_weight = float(opts.normal_deviation_weight)
+    co.roundness_weight = float(opts.roundness_weight)
+    co.straightness_weight = float(opts.straightness_weight)
+    co.normal_seam_weight = float(opts.normal_seam_weight)
+    co.texture_seam_weight = float(opts.texture_seam_weight)
+    po = xatlas.PackOptions()
+    po.resolution = int(opts.resolution)
+    po.padding = int(opts.padding)
+    po.texels_per_unit = float(opts.texels_per_unit)
+    po.bilinear = bool(opts.bilinear)
+    po.bruteForce = bool(opts.brute_force)
+    po.rotate_charts = bool(opts.rotate_charts)
+    atlas = xatlas.Atlas()
+    atlas.add_mesh(positions.astype(np.float32), faces.astype(np.uint32))
+    t0 = time.perf_counter()
+    atlas.generate(co, po)
+    seconds = time.perf_counter() - t0
+    if atlas.atlas_count != 1:
+        raise InputError(f"xatlas made {atlas.atlas_count} atlases; raise --resolution or lower --padding")
+    vmap, idx, uv = atlas[0]
+    w, h = int(atlas.width), int(atlas.height)
+    uv = uv.astype(np.float64) * np.array([w, h]) / max(w, h)
+    mesh = make_uv_mesh(vertices[vmap], idx.astype(np.int64), uv, name="xatlas output")
+    return XatlasResult(mesh, vmap.astype(np.int64), int(atlas.chart_count), (w, h), float(atlas.utilization),
+                        seconds, asdict(opts))
