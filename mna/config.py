@@ -72,6 +72,8 @@ class FitConfig:
     """UV samples per chart per step."""
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
+    dist_samples: int = 0
+    """Positives per chart whose Jacobian enters L_dist each step (0 = all, as the paper)."""
     lr: float = 1e-3
     """Adam learning rate."""
     lr_decay_start: float = 1.0
@@ -136,6 +138,7 @@ def fast() -> FitConfig:
         model=ModelConfig(chart_width=128, label_width=96, label_depth=3),
         uv_samples=3000,
         targets=3000,
+        dist_samples=256,
         lr=1e-3,
         lr_decay_start=0.55,
         lr_final=0.02,
@@ -150,7 +153,7 @@ def tiny() -> FitConfig:
         preset="tiny",
         model=ModelConfig(chart_width=32, label_width=32, label_depth=2, octaves=4),
         uv_samples=600, targets=400, steps=100, lr=2e-3, lr_decay_start=0.6, lr_final=0.1,
-        c_samples=4000, eval_points=4000, eval_uv_samples=3000, grid=48, checkpoint_every=50,
+        c_samples=4000, eval_points=4000, eval_uv_samples=3000, grid=48, checkpoint_every=50, threads=1,
     )
 
 

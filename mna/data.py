@@ -125,11 +125,16 @@ def make_surface(points: np.ndarray, faces: np.ndarray | None, path: str = "<mem
 
 def _read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     try:
-        loaded = trimesh.load(path, force="mesh", process=False)
+        loaded = trimesh.load(path, process=False)
+        if isinstance(loaded, trimesh.Scene):
+            loaded = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded.dump(concatenate=True)
     except Exception as exc:  # trimesh raises many types on bad files
-        raise InputError(f"cannot read {path.name}: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from None
+        detail = str(exc).splitlines()[0] if str(exc) else ""
+        raise InputError(f"cannot read {path.name}: {type(exc).__name__}: {detail}") from None
     if isinstance(loaded, trimesh.PointCloud):
-        return np.asarray(loaded.vertices), None
+        if path.suffix.lower() == ".ply":
+            return np.asarray(loaded.vertices), None  # a PLY without faces is a point cloud
+        raise InputError(f"mesh has no faces: {path} (use .ply, .xyz, .npy or .npz for point clouds)")
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))))
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3), dtype=np.int64)))
     if len(vertices) == 0:

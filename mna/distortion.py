@@ -22,8 +22,9 @@ from typing import NamedTuple
 
 #: epsilon added to g before inversion in the SSDE (paper: g_hat = J^T J + eps I).
 SSDE_EPS = 1e-4
-#: floor added to sqrt(det g) in the area distortion, so degenerate faces stay finite.
-AREA_EPS = 1e-12
+#: floor added to det g (MIPS) and sqrt(det g) (area) so degenerate faces stay finite;
+#: far below any real scale, so it never biases a non-degenerate map.
+AREA_EPS = 1e-20
 
 
 class MetricTensor(NamedTuple):

@@ -108,11 +108,21 @@ class Fitter:
         slot = torch.arange(len(uniq), device=uniq.device) - offsets[chart_of]
         pos_uv = torch.zeros(K, 1, int(counts.max()), 2, device=uv.device, dtype=uv.dtype)
         pos_uv[chart_of, 0, slot] = uv.reshape(K * N, 2)[uniq]
-        out = model.chart(pos_uv, jacobian=cfg.loss.w_dist > 0)
+        limit = cfg.dist_samples
+        split_jac = cfg.loss.w_dist > 0 and 0 < limit < int(counts.max())
+        out = model.chart(pos_uv, jacobian=cfg.loss.w_dist > 0 and not split_jac)
         matched = out.x[chart_of, 0, slot]  # (U, 3)
         rec = losses.reconstruction_loss(targets, matched[inverse])
-        dist = (losses.distortion_loss(out.jac[chart_of, 0, slot], cfg.loss.eps)
-                if out.jac is not None else torch.zeros((), device=uv.device))
+        if cfg.loss.w_dist <= 0:
+            dist = torch.zeros((), device=uv.device)
+        elif split_jac:
+            # L_dist on the first `limit` positives of each chart: positives come in random
+            # order within a chart, so this is a random subset (an unbiased-ratio estimate)
+            jac = model.chart(pos_uv[:, :, :limit], jacobian=True).jac
+            keep = slot < limit
+            dist = losses.distortion_loss(jac[chart_of[keep], 0, slot[keep]], cfg.loss.eps)
+        else:
+            dist = losses.distortion_loss(out.jac[chart_of, 0, slot], cfg.loss.eps)
         logits = model.label_logits(uv, x)  # x carries no gradient: L_occ never reaches phi
         occ = losses.occupancy_loss(logits.reshape(-1), labels)
         return rec, dist, occ, len(uniq)

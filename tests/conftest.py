@@ -6,6 +6,10 @@ from pathlib import Path
 
 import pytest
 
+# Helper processes or a busy CI box oversubscribe the 2 cores; spinning OpenMP workers then
+# slow torch down many times over. Must be set before torch is imported.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 SHARED_MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "meshes"
 ON_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 

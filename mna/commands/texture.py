@@ -42,6 +42,14 @@ def register(subparsers) -> None:
     u.add_argument("--size", default=None, help="texture size (default: --resolution)")
     u.set_defaults(func=run_uv)
 
+    m = subparsers.add_parser("uv-metrics", help="measure any UV-mapped mesh with the texture harness",
+                              description="Distortions, charts, seam length, flips, folds, overlap, utilisation and "
+                                          "texel-density spread of MESH's UVs (the harness used by mna compare).")
+    m.add_argument("mesh", metavar="MESH", help="mesh with UVs (.obj .glb .ply)")
+    m.add_argument("--reference", default=None, metavar="REF", help="true surface (normals for folds, boundary for seams)")
+    m.add_argument("-o", "--out", default=None, metavar="JSON", help="write the summary here (default: print it)")
+    m.set_defaults(func=run_uv_metrics)
+
     c = subparsers.add_parser("compare", help="our atlas vs xatlas on the same mesh, one harness: compare.json/.md",
                               description="Run xatlas on the run's reconstructed mesh (RUN/xatlas/) and on the input "
                                           "mesh, sweep xatlas's max_cost/max_iterations, and tabulate every method "
@@ -102,4 +110,26 @@ def run_compare(args: argparse.Namespace) -> int:
     padding = _int_arg(args.padding, "--padding", 0)
     r = compare_run(args.run, sweep=not args.no_sweep, size=size, padding=padding)
     print(f"compared {len(r['methods'])} methods -> {Path(args.run) / 'compare.md'}")
+    return 0
+
+
+def run_uv_metrics(args: argparse.Namespace) -> int:
+    import json
+
+    import trimesh
+
+    from mna.atomic import write_json
+    from texture.harness import measure
+    from texture.uvmesh import load_uv_mesh
+
+    mesh, _ = load_uv_mesh(args.mesh)
+    ref = None
+    if args.reference:
+        _, ref = load_uv_mesh(args.reference, require_uv=False)
+        ref = trimesh.Trimesh(ref.vertices, ref.faces, process=False)
+    summary = measure(mesh, reference=ref).summary
+    if args.out:
+        write_json(args.out, summary)
+    else:
+        print(json.dumps(summary, indent=2))
     return 0
