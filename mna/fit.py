@@ -1,11 +1,7 @@
 """Per-shape optimisation of a neural atlas (paper Sec. 4), resumable and interruptible.
 
-One step: sample UVs in every chart's square; evaluate all charts without gradients; find
-each target point's nearest chart sample (PU positives); then evaluate the charts *with*
-gradients and exact Jacobians at the unique positives only. L_rec and L_dist only ever
-touch positives (the nearest sample of a target is a positive), so this is the same loss
-as evaluating everything with gradients, at a fraction of the cost. L_occ trains ``l_k``
-on all samples with ``phi`` detached.
+Each step draws fresh UV samples and fresh target points (from the mesh surface, or a
+subset of the input cloud) and minimises :func:`mna.objective.atlas_losses`.
 """
 from __future__ import annotations
 
@@ -18,12 +14,11 @@ from typing import Callable
 import numpy as np
 import torch
 
-from mna import losses
 from mna.config import FitConfig
 from mna.data import Surface
 from mna.inference import uniform_uv
 from mna.model import NeuralAtlas
-from mna.neighbors import nearest
+from mna.objective import atlas_losses
 
 
 def resolve_device(name: str) -> torch.device:
@@ -78,67 +73,15 @@ class Fitter:
         cfg, model, dev = self.cfg, self.model, self.device
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr * lr_factor(self.progress(), cfg.lr_decay_start, cfg.lr_final)
-        K, N = cfg.model.charts, cfg.uv_samples
-        uv = uniform_uv(K, N, self.generator, 1, dev)
+        uv = uniform_uv(cfg.model.charts, cfg.uv_samples, self.generator, 1, dev)
         targets = torch.from_numpy(self.surface.sample(cfg.targets, self.rng)).float().to(dev)
-        if cfg.ablation.atlasnet:
-            rec, dist, n_pos = self._atlasnet_terms(uv, targets)
-            occ = torch.zeros((), device=dev)
-        else:
-            rec, dist, occ, n_pos = self._mna_terms(uv, targets)
-        total = cfg.loss.w_rec * rec + cfg.loss.w_occ * occ + cfg.loss.w_dist * dist
+        terms = atlas_losses(model, uv, targets[None], cfg)
+        total = terms.total
         self.optimizer.zero_grad(set_to_none=True)
         total.backward()
         self.optimizer.step()
         self.step += 1
-        return StepLosses(total.item(), rec.item(), occ.item(), dist.item(), n_pos)
-
-    def _mna_terms(self, uv: torch.Tensor, targets: torch.Tensor):
-        model, cfg = self.model, self.cfg
-        K, N = uv.shape[0], uv.shape[2]
-        with torch.no_grad():
-            x = model.chart(uv).x  # (K, 1, N, 3)
-        nn = nearest(targets, x.reshape(K * N, 3))
-        labels = losses.positive_labels(nn.index, K * N)
-        # unique positives, sorted, so chart ids are non-decreasing; pack them per chart
-        uniq, inverse = torch.unique(nn.index, sorted=True, return_inverse=True)
-        chart_of = uniq // N
-        counts = torch.bincount(chart_of, minlength=K)
-        offsets = torch.cumsum(counts, 0) - counts
-        slot = torch.arange(len(uniq), device=uniq.device) - offsets[chart_of]
-        pos_uv = torch.zeros(K, 1, int(counts.max()), 2, device=uv.device, dtype=uv.dtype)
-        pos_uv[chart_of, 0, slot] = uv.reshape(K * N, 2)[uniq]
-        limit = cfg.dist_samples
-        split_jac = cfg.loss.w_dist > 0 and 0 < limit < int(counts.max())
-        out = model.chart(pos_uv, jacobian=cfg.loss.w_dist > 0 and not split_jac)
-        matched = out.x[chart_of, 0, slot]  # (U, 3)
-        rec = losses.reconstruction_loss(targets, matched[inverse])
-        if cfg.loss.w_dist <= 0:
-            dist = torch.zeros((), device=uv.device)
-        elif split_jac:
-            # L_dist on the first `limit` positives of each chart: positives come in random
-            # order within a chart, so this is a random subset (an unbiased-ratio estimate)
-            jac = model.chart(pos_uv[:, :, :limit], jacobian=True).jac
-            keep = slot < limit
-            dist = losses.distortion_loss(jac[chart_of[keep], 0, slot[keep]], cfg.loss.eps)
-        else:
-            dist = losses.distortion_loss(out.jac[chart_of, 0, slot], cfg.loss.eps)
-        logits = model.label_logits(uv, x)  # x carries no gradient: L_occ never reaches phi
-        occ = losses.occupancy_loss(logits.reshape(-1), labels)
-        return rec, dist, occ, len(uniq)
-
-    def _atlasnet_terms(self, uv: torch.Tensor, targets: torch.Tensor):
-        """No occupancy: every sample counts; bidirectional Chamfer; distortion over all samples."""
-        cfg = self.cfg
-        K, N = uv.shape[0], uv.shape[2]
-        out = self.model.chart(uv, jacobian=cfg.loss.w_dist > 0)
-        pts = out.x.reshape(K * N, 3)
-        to_pts = nearest(targets, pts)
-        to_tgt = nearest(pts, targets)
-        rec = losses.reconstruction_loss(targets, pts[to_pts.index]) + losses.chamfer_to(pts, targets, to_tgt.index)
-        dist = (losses.distortion_loss(out.jac.reshape(-1, 3, 2), cfg.loss.eps)
-                if out.jac is not None else torch.zeros((), device=uv.device))
-        return rec, dist, K * N
+        return StepLosses(total.item(), terms.rec.item(), terms.occ.item(), terms.dist.item(), terms.positives)
 
     # -- state -----------------------------------------------------------------------------
     def state_dict(self) -> dict:

@@ -1,0 +1,102 @@
+"""The training objective for a batch of shapes: one implementation for per-shape fits and datasets.
+
+For each shape ``b``: evaluate all charts at the UV samples without gradients; find each
+target point's nearest chart sample (PU positives); then evaluate the charts *with*
+gradients (and exact Jacobians) at the unique positives only. L_rec and L_dist only ever
+touch positives (a target's nearest sample is a positive), so this equals evaluating every
+sample with gradients, at a fraction of the cost. L_occ trains ``l_k`` on all samples with
+``phi`` detached (paper: no gradient from L_occ into the charts).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+from mna import losses
+from mna.config import FitConfig
+from mna.model import NeuralAtlas
+from mna.neighbors import nearest
+
+
+class LossTerms(NamedTuple):
+    total: torch.Tensor
+    rec: torch.Tensor
+    occ: torch.Tensor
+    dist: torch.Tensor
+    positives: int
+
+
+def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig,
+                 z: torch.Tensor | None = None) -> LossTerms:
+    """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame)."""
+    if cfg.ablation.atlasnet:
+        rec, dist, n = _atlasnet_terms(model, uv, targets, cfg, z)
+        occ = torch.zeros((), device=uv.device)
+    else:
+        rec, dist, occ, n = _mna_terms(model, uv, targets, cfg, z)
+    w = cfg.loss
+    return LossTerms(w.w_rec * rec + w.w_occ * occ + w.w_dist * dist, rec, occ, dist, n)
+
+
+def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z):
+    K, B, N, _ = uv.shape
+    T = targets.shape[1]
+    with torch.no_grad():
+        x = model.chart(uv, z).x  # (K, B, N, 3)
+    # per shape: nearest sample (flat k*N + n) of every target -> global key b*K*N + k*N + n
+    keys, labels = [], []
+    for b in range(B):
+        idx = nearest(targets[b], x[:, b].reshape(K * N, 3)).index.to(uv.device)
+        labels.append(losses.positive_labels(idx, K * N).view(K, N))
+        keys.append(idx + b * K * N)
+    labels = torch.stack(labels, 1)  # (K, B, N), like the logits
+    key = torch.cat(keys)
+    uniq, inverse = torch.unique(key, sorted=True, return_inverse=True)
+    b_of, rest = uniq // (K * N), uniq % (K * N)
+    k_of, n_of = rest // N, rest % N
+    group = b_of * K + k_of  # keys sorted by (b, k): each group's positives are contiguous
+    counts = torch.bincount(group, minlength=B * K)
+    offsets = torch.cumsum(counts, 0) - counts
+    slot = torch.arange(len(uniq), device=uv.device) - offsets[group]
+    pos_uv = torch.zeros(K, B, int(counts.max()), 2, device=uv.device, dtype=uv.dtype)
+    pos_uv[k_of, b_of, slot] = uv[k_of, b_of, n_of]
+
+    limit = cfg.dist_samples
+    want_jac = cfg.loss.w_dist > 0
+    split_jac = want_jac and 0 < limit < int(counts.max())
+    out = model.chart(pos_uv, z, jacobian=want_jac and not split_jac)
+    matched = out.x[k_of, b_of, slot]  # (U, 3)
+    rec = losses.reconstruction_loss(targets.reshape(B * T, 3), matched[inverse])
+    if not want_jac:
+        dist = torch.zeros((), device=uv.device)
+    else:
+        if split_jac:
+            # L_dist on the first `limit` positives of each chart: positives come in random order
+            # within a chart (UV samples are i.i.d.), so this is a random subset
+            jac_all = model.chart(pos_uv[:, :, :limit], z, jacobian=True).jac
+            keep = slot < limit
+            jac, jb = jac_all[k_of[keep], b_of[keep], slot[keep]], b_of[keep]
+        else:
+            jac, jb = out.jac[k_of, b_of, slot], b_of
+        # one scale per shape (shared by its charts), averaged over the batch
+        dist = torch.stack([losses.distortion_loss(jac[jb == b], cfg.loss.eps) for b in range(B)]).mean()
+    logits = model.label_logits(uv, x, z)  # x carries no gradient: L_occ never reaches phi
+    occ = losses.occupancy_loss(logits.reshape(-1), labels.reshape(-1))
+    return rec, dist, occ, len(uniq)
+
+
+def _atlasnet_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z):
+    """No occupancy: every sample counts; bidirectional Chamfer; distortion over all samples."""
+    K, B, N, _ = uv.shape
+    out = model.chart(uv, z, jacobian=cfg.loss.w_dist > 0)
+    rec, dist = 0.0, []
+    for b in range(B):
+        pts = out.x[:, b].reshape(K * N, 3)
+        to_pts = nearest(targets[b], pts).index.to(uv.device)
+        to_tgt = nearest(pts, targets[b]).index.to(uv.device)
+        rec = rec + losses.reconstruction_loss(targets[b], pts[to_pts]) + losses.chamfer_to(pts, targets[b], to_tgt)
+        if out.jac is not None:
+            dist.append(losses.distortion_loss(out.jac[:, b].reshape(-1, 3, 2), cfg.loss.eps))
+    dist_t = torch.stack(dist).mean() if dist else torch.zeros((), device=uv.device)
+    return rec / B, dist_t, K * B * N
