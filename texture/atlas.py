@@ -84,11 +84,14 @@ def coverage_stats(charts: ChartGrids, pieces: list[Piece], reference: np.ndarra
     """F-score of the run's kept mesh and of the trimmed atlas against ``reference`` (unit frame)."""
     xyz, _, faces, _, _ = _merge(pieces)
     trimmed_pts, _ = sample_surface(xyz, faces, POINTS, seed)
+    kept_pts = ref = None
     if charts.kept_vertices is not None and len(charts.kept_faces):
-        kept_pts, _ = sample_surface(charts.normalization.apply(charts.kept_vertices), charts.kept_faces, POINTS, seed + 1)
-    else:
-        kept_pts = None
-    ref = reference if reference is not None else kept_pts
+        kept = charts.normalization.apply(charts.kept_vertices)
+        kept_pts, _ = sample_surface(kept, charts.kept_faces, POINTS, seed + 1)
+        if reference is None:  # an independent sample, so "before" is not compared with itself
+            ref, _ = sample_surface(kept, charts.kept_faces, POINTS, seed + 2)
+    if reference is not None:
+        ref = reference
     out = {"coverage_reference": "input" if reference is not None else "kept_mesh"}
     if ref is None:
         return out

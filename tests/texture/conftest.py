@@ -82,7 +82,8 @@ def sphere_run(tmp_path_factory) -> Path:
 
 @pytest.fixture
 def fresh_sphere_run(tmp_path) -> Path:
-    return write_sphere_run(tmp_path / "run")
+    """A writable synthetic run (coarser grid than ``sphere_run``: CLI tests are end to end)."""
+    return write_sphere_run(tmp_path / "run", G=64)
 
 
 @pytest.fixture(scope="session")

@@ -1,0 +1,130 @@
+"""Charts -> atlas: iso-line clipping, overlap trimming, packing at one texel density."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import cap_chart, sphere_charts
+
+from texture.atlas import AtlasConfig, build_atlas
+from texture.charts import ChartGrids, load_charts
+from texture.clip import clip_mesh, grid_faces
+from texture.islands import uv_islands
+from texture.pack import pack_islands, verify_packing
+from texture.raster import coverage_count
+from texture.trim import border_points, domain_pieces, trim_charts
+from texture.uvmesh import Normalization
+
+
+def _uv_area(uv, faces):
+    t = uv[faces]
+    return 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+
+
+@pytest.mark.parametrize("G", [5, 17])
+def test_clip_linear_field_is_exact_at_any_resolution(G):
+    lin = np.linspace(0, 1, G)
+    x, y = np.meshgrid(lin, lin, indexing="xy")
+    P = np.column_stack([x.ravel(), y.ravel()])
+    field = 0.62 - P[:, 0] - 0.2 * P[:, 1]  # kept: x + 0.2 y < 0.62, a trapezoid of area 0.52
+    c = clip_mesh(P, grid_faces(G), field)
+    area = _uv_area(c.attrs, c.faces)
+    assert (area > 0).all()  # orientation kept, no inverted pieces
+    assert area.sum() == pytest.approx(0.52, abs=1e-9)
+    cut = c.attrs[c.field == 0]
+    np.testing.assert_allclose(cut[:, 0] + 0.2 * cut[:, 1], 0.62, atol=1e-12)  # cut points on the iso-line
+    assert len(uv_islands(c.faces, c.attrs)) == len(c.faces) and uv_islands(c.faces, c.attrs).max() == 0
+
+
+def test_domain_cut_follows_iso_line_not_staircase():
+    theta_max = np.radians(80)
+    G = 64
+    uv, xyz, occ = cap_chart(G, theta_max, (0, 0, 1))
+    charts = ChartGrids(uv[None], xyz[None], occ[None], 0.5, Normalization(np.zeros(3), 1.0))
+    piece = domain_pieces(charts)[0]
+    cap_area = 2 * np.pi * (1 - np.cos(theta_max))
+    rim = 2 * np.pi * np.sin(theta_max)
+    assert piece.area().sum() == pytest.approx(cap_area, rel=5e-3)
+    b = border_points(piece)
+    polar = np.arccos(np.clip(b[:, 2], -1, 1))
+    np.testing.assert_allclose(polar, theta_max, atol=2e-3)  # border vertices on the rim
+    # border length: iso-line ~ the rim; whole grid cells (the run's kept mesh) are a staircase
+    from texture.harness import measure
+    from texture.uvmesh import make_uv_mesh
+
+    ours = measure(make_uv_mesh(piece.xyz, piece.faces, piece.uv), reference_is_closed=True, resolution=64)
+    tri = grid_faces(G)
+    kept = tri[(occ.reshape(-1) > 0.5)[tri].all(1)]
+    stair = measure(make_uv_mesh(xyz.reshape(-1, 3), kept, uv.reshape(-1, 2)), reference_is_closed=True, resolution=64)
+    # seam length = half the border (its two sides count once) / sqrt(area): scale-free
+    assert ours.summary["seam_length"] == pytest.approx(rim / 2 / np.sqrt(cap_area), rel=0.01)
+    assert stair.summary["seam_length"] > 1.2 * ours.summary["seam_length"]
+
+
+def test_trim_two_caps_gives_one_layer(sphere_run):
+    charts = load_charts(sphere_run / "charts.npz")
+    res = trim_charts(charts)
+    total = sum(p.area().sum() for p in res.pieces)
+    assert total == pytest.approx(4 * np.pi, rel=0.01)  # every part of the sphere once
+    assert res.stats["doubly_covered_percent_before"] > 20  # the 75..105 degree band
+    assert res.stats["doubly_covered_percent"] <= 1.0
+    for p in res.pieces:  # by symmetry the border is the equator
+        assert p.area().sum() == pytest.approx(2 * np.pi, rel=0.02)
+        assert np.abs(border_points(p)[:, 2]).max() < 0.05
+        assert uv_islands(p.faces, p.uv).max() == 0  # one island per cap
+
+
+def test_pack_keeps_one_scale_no_overlap_inside_unit_square():
+    rng = np.random.default_rng(0)
+    uvs, faces, island, off = [], [], [], 0
+    sizes = [1.0, 0.5, 0.3, 0.3, 0.12]
+    for i, s in enumerate(sizes):  # islands: jittered grids of different sizes, same local UV origin
+        G = 6
+        lin = np.linspace(-s, s, G)
+        u, v = np.meshgrid(lin, lin, indexing="xy")
+        P = np.column_stack([u.ravel(), v.ravel()]) + 0.02 * s * rng.standard_normal((G * G, 2))
+        uvs.append(P)
+        faces.append(grid_faces(G) + off)
+        island.append(np.full(2 * (G - 1) ** 2, i))
+        off += G * G
+    uv, faces, island = np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
+    pk = pack_islands(uv, faces, island, resolution=256, padding=2)
+    assert pk.uv.min() >= 0 and pk.uv.max() <= 1
+    # rasterise every island separately: no texel is covered by two islands
+    counts = np.stack([coverage_count(pk.uv[faces[island == i]], 256, 256) > 0 for i in range(len(sizes))])
+    assert counts.sum(0).max() == 1
+    assert verify_packing(pk.uv, faces, island, 256)[0] == 0
+    # one scale for every island, and each island is a rigid copy (edge lengths scale by pk.scale)
+    ratio = np.abs(_uv_area(pk.uv, faces)) / np.abs(_uv_area(uv, faces))
+    np.testing.assert_allclose(ratio, pk.scale**2, rtol=1e-6)
+    e_in = np.linalg.norm(uv[faces[:, 1]] - uv[faces[:, 0]], axis=1)
+    e_out = np.linalg.norm(pk.uv[faces[:, 1]] - pk.uv[faces[:, 0]], axis=1)
+    np.testing.assert_allclose(e_out, pk.scale * e_in, rtol=1e-6)
+    assert 0.2 < pk.utilization < 1.0
+
+
+def test_build_atlas_on_synthetic_sphere(sphere_run):
+    charts = load_charts(sphere_run / "charts.npz")
+    atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2))
+    s = atlas.stats
+    assert s["islands"] == 2 and s["charts_used"] == 2
+    assert s["doubly_covered_percent"] <= 1.0
+    assert s["fscore_drop"] <= 0.5
+    assert atlas.mesh.uv.min() >= 0 and atlas.mesh.uv.max() <= 1
+    # positions come back in the input frame: on the sphere of radius SCALE around CENTER
+    from conftest import CENTER, SCALE
+
+    r = np.linalg.norm(atlas.mesh.vertices - CENTER, axis=1)
+    np.testing.assert_allclose(r, SCALE, rtol=2e-3)
+    # one scale for both islands: each cap's domain is cut at the equator, theta = 90 deg, i.e. the
+    # chart-local disc r < 90/105, so the packed UV area is uv_scale^2 * 2 pi (90/105)^2
+    per_face = np.abs(_uv_area(atlas.mesh.uv, atlas.mesh.faces))
+    expected = s["uv_scale"] ** 2 * np.pi * (90 / 105) ** 2
+    for k in range(2):
+        assert per_face[atlas.chart == k].sum() == pytest.approx(expected, rel=0.01)
+
+
+def test_sphere_charts_fixture_is_consistent():
+    uv, xyz, occ = sphere_charts(G=33)
+    assert uv.shape == (2, 33, 33, 2) and xyz.shape == (2, 33, 33, 3) and occ.shape == (2, 33, 33)
+    # grid convention: uv[k, i, j] = (u_j, v_i)
+    assert uv[0, 0, 32].tolist() == [1.0, -1.0] and uv[0, 32, 0].tolist() == [-1.0, 1.0]

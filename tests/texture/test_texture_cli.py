@@ -1,0 +1,189 @@
+"""``mna export``, ``mna uv``, ``mna uv-metrics``, ``mna compare``: outputs and every bad input."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import CENTER, color_function
+
+from mna import shapes
+from mna.cli import main
+from texture.export import read_back
+from texture.textures import read_image, sample_bilinear
+
+
+def _one_error_line(capsys, code):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and "error" in err[0]
+    return err[0]
+
+
+def _files(folder: Path) -> set[str]:
+    return {p.name for p in folder.iterdir()}
+
+
+def test_export_writes_textured_assets(fresh_sphere_run, capsys):
+    run = fresh_sphere_run
+    before = _files(run)
+    assert main(["export", str(run), "--size", "256", "--padding", "2"]) == 0
+    assert _files(run) - before == {"mesh.obj", "mesh.mtl", "mesh_texture.png", "mesh.glb", "atlas.json"}
+    info = json.loads((run / "atlas.json").read_text())
+    a, m = info["atlas"], info["uv_metrics"]
+    assert a["islands"] == 2 and m["charts"] == 2
+    assert a["doubly_covered_percent"] <= 1.0 and a["fscore_drop"] <= 0.5
+    assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    assert m["distortion_metric"] < 0.5
+    # seam = the equator (length 2 pi on the unit sphere) / sqrt(4 pi)
+    assert m["seam_length"] == pytest.approx(2 * np.pi / np.sqrt(4 * np.pi), rel=0.03)
+    back = read_back(run / "mesh.obj")
+    assert back.uv.min() >= 0 and back.uv.max() <= 1
+    assert np.linalg.norm(back.vertices - CENTER, axis=1).mean() == pytest.approx(2.0, rel=1e-3)  # input frame
+    assert "atlas: 2 islands" in capsys.readouterr().out
+
+
+def test_export_bake_reproduces_input_colours(fresh_sphere_run):
+    run = fresh_sphere_run
+    assert main(["export", str(run), "--texture", "bake", "--size", "256", "--padding", "4"]) == 0
+    mesh = read_back(run / "mesh.obj")
+    img = read_image(run / "mesh_texture.png")
+    centre = mesh.vertices[mesh.faces].mean(1)
+    want = color_function((centre - CENTER) / 2.0)[:, :3] / 255
+    err = np.abs(sample_bilinear(img, mesh.uv[mesh.faces].mean(1)) - want)
+    assert err.mean() < 0.01 and np.percentile(err, 99) < 0.05
+
+
+def test_uv_and_uv_metrics(tmp_path, capsys):
+    src = tmp_path / "sphere.obj"
+    shapes.sphere(subdivisions=3).export(src)
+    out = tmp_path / "out"
+    assert main(["uv", str(src), "-o", str(out), "--resolution", "256", "--padding", "2", "--max-cost", "4"]) == 0
+    assert _files(out) == {"mesh.obj", "mesh.mtl", "mesh_texture.png", "mesh.glb", "metrics.json"}
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["uv_metrics"]["flipped_faces"] == 0 and m["options"]["max_cost"] == 4.0
+    assert m["uv_metrics"]["charts"] == m["xatlas_charts"]
+    capsys.readouterr()
+    assert main(["uv-metrics", str(out / "mesh.obj"), "--reference", str(src), "-o", str(tmp_path / "m.json")]) == 0
+    again = json.loads((tmp_path / "m.json").read_text())
+    assert again["charts"] == m["uv_metrics"]["charts"]
+    assert again["distortion_metric"] == pytest.approx(m["uv_metrics"]["distortion_metric"], abs=1e-5)
+
+
+def test_compare_tabulates_every_method(tmp_path, monkeypatch):
+    import texture.compare as C
+    from conftest import write_sphere_run
+
+    monkeypatch.setattr(C, "SWEEP_MAX_COST", (1.0, 8.0))
+    monkeypatch.setattr(C, "SWEEP_MAX_ITERATIONS", (1,))
+    run = write_sphere_run(tmp_path / "run", G=40)
+    assert main(["compare", str(run), "--size", "256", "--padding", "2"]) == 0
+    res = json.loads((run / "compare.json").read_text())
+    names = [r["method"] for r in res["methods"]]
+    assert names == ["mna", "xatlas", "xatlas_input"]
+    assert len(res["sweep"]) == 2
+    for sub in ("xatlas", "xatlas_input"):
+        assert {"mesh.obj", "mesh.glb", "mesh_texture.png", "metrics.json"} <= _files(run / sub)
+    ours, xa = res["methods"][0], res["methods"][1]
+    assert ours["faces"] == xa["faces"]  # the same reconstructed mesh
+    assert ours["charts"] == 2 and xa["charts"] >= 2
+    assert ours["seam_length"] <= xa["seam_length"] + 1e-9  # xatlas cannot join our separate islands
+    md = (run / "compare.md").read_text()
+    assert "| mna | reconstruction |" in md and "xatlas sweep" in md
+
+
+# ---- bad input: one line, exit 2, nothing written --------------------------------------------
+
+
+@pytest.mark.parametrize("size", ["0", "-4", "abc", "1.5"])
+def test_export_bad_size(fresh_sphere_run, capsys, size):
+    before = _files(fresh_sphere_run)
+    code = main(["export", str(fresh_sphere_run), f"--size={size}"])
+    assert "positive integer" in _one_error_line(capsys, code)
+    assert _files(fresh_sphere_run) == before
+
+
+def test_export_missing_charts(tmp_path, capsys):
+    (tmp_path / "run").mkdir()
+    code = main(["export", str(tmp_path / "run")])
+    assert "charts file not found" in _one_error_line(capsys, code)
+    assert _files(tmp_path / "run") == set()
+
+
+def test_export_nan_charts(fresh_sphere_run, capsys):
+    run = fresh_sphere_run
+    with np.load(run / "charts.npz") as z:
+        data = dict(z)
+    data["xyz"][0, 3, 3, 0] = np.nan
+    np.savez(run / "charts.npz", **data)
+    before = _files(run)
+    code = main(["export", str(run)])
+    assert "NaN" in _one_error_line(capsys, code)
+    assert _files(run) == before
+
+
+def test_export_bake_without_colours(fresh_sphere_run, capsys):
+    run = fresh_sphere_run
+    shapes.sphere(subdivisions=2).export(run / "input.ply")  # no colours
+    before = _files(run)
+    code = main(["export", str(run), "--texture", "bake", "--size", "64"])
+    assert "neither vertex colours nor a texture" in _one_error_line(capsys, code)
+    assert _files(run) == before
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+QUAD = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+
+
+def test_uv_metrics_mesh_without_uvs(tmp_path, capsys):
+    mesh = _write(tmp_path / "plain.obj", QUAD + "f 1 2 3\nf 1 3 4\n")
+    code = main(["uv-metrics", str(mesh)])
+    assert "has no UVs" in _one_error_line(capsys, code)
+
+
+def test_uv_metrics_nan_uvs(tmp_path, capsys):
+    mesh = _write(tmp_path / "nan.obj", QUAD + "vt 0 0\nvt 1 0\nvt nan 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    code = main(["uv-metrics", str(mesh), "-o", str(tmp_path / "m.json")])
+    assert "NaN" in _one_error_line(capsys, code)
+    assert not (tmp_path / "m.json").exists()
+
+
+@pytest.mark.parametrize("faces, message", [
+    ("f 1 2 3\nf 2 1 4\nf 1 2 5\n", "non-manifold"),  # edge 1-2 has three faces
+    ("f 1 2 3\nf 1 3 4\nf 1 2 2\n", "degenerate"),
+    ("f 1 2 3\nf 1 3 4\nv 2 0 0\nf 2 5 2\n", "degenerate"),
+])
+def test_uv_rejects_bad_meshes(tmp_path, capsys, faces, message):
+    mesh = _write(tmp_path / "bad.obj", QUAD + "v 0.5 0.5 1\n" + faces)
+    out = tmp_path / "out"
+    code = main(["uv", str(mesh), "-o", str(out)])
+    assert message in _one_error_line(capsys, code)
+    assert not out.exists() or _files(out) == set()
+
+
+def test_uv_bake_with_unreadable_texture(tmp_path, capsys):
+    (tmp_path / "tex.png").write_bytes(b"garbage, not an image")
+    _write(tmp_path / "m.mtl", "newmtl a\nmap_Kd tex.png\n")
+    mesh = _write(tmp_path / "m.obj", "mtllib m.mtl\n" + QUAD + "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl a\n"
+                  "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    out = tmp_path / "out"
+    code = main(["uv", str(mesh), "-o", str(out), "--texture", "bake", "--resolution", "64"])
+    _one_error_line(capsys, code)
+    assert not out.exists() or _files(out) == set()
+
+
+def test_uv_missing_and_bad_options(tmp_path, capsys):
+    code = main(["uv", str(tmp_path / "nope.obj"), "-o", str(tmp_path / "o")])
+    assert "not found" in _one_error_line(capsys, code)
+    src = tmp_path / "s.obj"
+    shapes.sphere(subdivisions=1).export(src)
+    code = main(["uv", str(src), "-o", str(tmp_path / "o"), "--max-cost", "-1"])
+    assert "--max-cost" in _one_error_line(capsys, code)
+    code = main(["uv", str(src), "-o", str(tmp_path / "o"), "--size", "0"])
+    assert "positive integer" in _one_error_line(capsys, code)
+    assert not (tmp_path / "o").exists()
