@@ -51,9 +51,10 @@ def test_render_run_writes_both_methods_comparably(rendered_run):
 
 
 def test_figure_grid_and_pdf(rendered_run, tmp_path, capsys):
+    # the layout `mna compare` writes: a list of rows under "methods"
     (rendered_run / "compare.json").write_text(json.dumps(
-        {"methods": {"mna": {"charts": 1, "seam_length": 2.5, "distortion_metric": 0.4},
-                     "xatlas": {"charts": 7, "seam_length": 4.0, "distortion_metric": 0.02}}}))
+        {"methods": [{"method": "mna", "charts": 1, "seam_length": 2.5, "distortion_metric": 0.4},
+                     {"method": "xatlas", "charts": 7, "seam_length": 4.0, "distortion_metric": 0.02}]}))
     from render.figure import caption
 
     assert caption(rendered_run, "xatlas") == "charts 7 · seam 4.00 · dist. 0.020"
