@@ -17,8 +17,9 @@ Summary keys (example values for xatlas on the bunny in docs/texture.md):
                        (majority by UV area); ``flipped_area_percent`` their 3D area.
 ``folded_faces``       faces whose 3D normal disagrees (negative dot product) with the
                        reference normal, against their island's majority (by 3D area).
-                       Reference = the reference surface's normal at the closest point
-                       when ``reference`` is given, else the island's smoothed normals.
+                       Reference = the reference surface's (vertex-interpolated) normal at
+                       the closest point when ``reference`` is given, else the island's
+                       own area-weighted vertex normals.
 ``uv_overlap_percent`` texels of ``resolution^2`` covered by >= 2 faces, percent of
                        covered texels (UV bounding box mapped to the square if UVs leave
                        [0,1]^2).
@@ -130,7 +131,8 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> np.nda
     if reference is not None:
         centroid = mesh.vertices[mesh.faces].mean(1)
         proj = reference.project(centroid)
-        ref_n = reference.normals[proj.face]
+        # smooth (vertex-normal) reference: facet normals of a coarse reference are noisy
+        ref_n = (proj.bary[:, :, None] * reference.normals[reference.faces[proj.face]]).sum(1)
     else:
         ref_n = _smoothed_normals(mesh, geom, island, weld)
     dot = (geom.normal * ref_n).sum(1)
@@ -197,7 +199,7 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     if reference is not None:
         rv = norm.apply(reference.vertices)
         projector = MeshProjector(rv, reference.faces)
-        projector.normals = np.asarray(reference.face_normals, np.float64)
+        projector.normals = np.asarray(reference.vertex_normals, np.float64)
         from .geometry import boundary_segments
 
         boundary = boundary_segments(rv, np.asarray(reference.faces))

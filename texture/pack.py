@@ -10,7 +10,8 @@ apply that exactly. So every island keeps its shape and all share one scale.
 
 The atlas is square: xatlas first packs at a guessed scale into an unbounded atlas,
 the scale is set so that atlas's larger side matches ``resolution``, and the islands are
-packed again into the fixed ``resolution^2`` square (shrinking by 3 % until they fit).
+packed again into the fixed ``resolution^2`` square, shrinking by 3 % until they fit and
+then growing by 3 % while they still fit (at most ``max_grow`` times).
 """
 from __future__ import annotations
 
@@ -25,6 +26,8 @@ from .raster import iter_hits
 MAX_FIT_RESIDUAL = 2.0
 #: faces below this fraction of the median UV area are ignored when fitting the placement.
 SOLID_FACE_REL = 1e-2
+#: scale steps of the fixed-square search.
+SHRINK, GROW = 0.97, 1.03
 
 
 @dataclass
@@ -76,7 +79,7 @@ def _rigid_fit(src: np.ndarray, dst: np.ndarray, scale: float):
 
 
 def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resolution: int = 2048,
-                 padding: int = 8, max_attempts: int = 14) -> Packing:
+                 padding: int = 8, max_attempts: int = 14, max_grow: int = 4) -> Packing:
     """Pack islands ``island (F,)`` of the UV mesh ``(uv (V,2), faces (F,3))``; see module docstring.
 
     Every vertex must belong to faces of a single island (true for split-vertex meshes).
@@ -101,10 +104,15 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     while attempts < max_attempts:
         attempts += 1
         atlas = _xatlas_pack(uv, faces, island, resolution, padding, tpu)
-        if atlas.atlas_count == 1 and atlas.width <= resolution and atlas.height <= resolution:
+        fits = atlas.atlas_count == 1 and atlas.width <= resolution and atlas.height <= resolution
+        if fits:
             best = (atlas, tpu)
+        elif best is not None:
+            break  # grew past the limit: keep the last fit
+        # shrink until it fits, then grow while it still fits (the square packs tighter than the free atlas)
+        tpu *= GROW if fits else SHRINK
+        if fits and attempts >= max_grow + 2:
             break
-        tpu *= 0.97
     if best is None:
         raise RuntimeError(f"xatlas could not pack {n_isl} islands into one {resolution}^2 atlas")
     atlas, tpu = best

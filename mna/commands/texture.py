@@ -19,7 +19,7 @@ def register(subparsers) -> None:
     e.add_argument("--size", default="2048", help="texture size in texels (default 2048)")
     e.add_argument("--padding", default="8", help="gutter around each island in texels (default 8)")
     e.add_argument("--square-size", type=float, default=None,
-                   help="checker square size in the unit-ball frame (default 0.05)")
+                   help="checker square size in the unit-ball frame (default 0.1)")
     e.set_defaults(func=run_export)
 
     u = subparsers.add_parser("uv", help="UV-map any mesh with xatlas and write a textured OBJ/GLB + metrics",
