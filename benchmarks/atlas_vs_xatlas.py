@@ -1,0 +1,145 @@
+"""Our packed atlas vs xatlas on the same reconstructed mesh; writes the ``## atlas_vs_xatlas`` section.
+
+    .venv/bin/python benchmarks/atlas_vs_xatlas.py                         # all meshes, 300 s fit each
+    .venv/bin/python benchmarks/atlas_vs_xatlas.py --only bunny --time-budget 120 --no-write
+
+Per mesh in ../shared/data/meshes: ``mna fit`` (fast preset, 3 charts, ``--time-budget``),
+``mna extract --grid G`` (default 128: xatlas's time grows quickly with the face count,
+about a minute at G = 128 and five at G = 256 on 2 cores), then ``mna export`` and
+``mna compare`` (texture.pipeline.export_run / texture.compare.compare_run), and the
+harness numbers of our atlas, of xatlas on the same reconstruction and of xatlas on the
+input mesh, with the time of every stage. Issue 3's targets are checked per mesh:
+seam length <= 1/4 of xatlas's (same mesh), <= 6 islands on single-part meshes,
+distortion_metric <= 0.5, flipped + folded < 0.1 % of the area, utilisation >= 0.6, and
+export + packing + texturing faster than xatlas's unwrap of the same mesh.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from mna.atomic import write_text  # noqa: E402
+
+MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
+RESULTS = ROOT / "benchmarks" / "RESULTS.md"
+SECTION = "atlas_vs_xatlas"
+SINGLE_PART = {"bunny", "spot", "bob_tri", "eight", "face", "inspired_mesh", "tshirt"}
+
+
+def _mna(*args: str) -> float:
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "mna.cli", *args], check=True, cwd=ROOT)
+    return time.perf_counter() - t0
+
+
+def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size: int) -> dict:
+    from texture.compare import compare_run
+    from texture.pipeline import export_run
+
+    run = work / mesh.stem
+    t_fit = _mna("fit", str(mesh), "-o", str(run), "--preset", "fast", "--charts", "3",
+                 "--time-budget", str(budget), "--no-progress")
+    t_extract = _mna("extract", str(run), "--grid", str(grid))
+    export = export_run(run, size=size, padding=8)
+    cmp = compare_run(run, sweep=sweep, size=size, padding=8)
+    fit_metrics = json.loads((run / "metrics.json").read_text())
+    return {"mesh": mesh.stem, "run": str(run), "fit_seconds": t_fit, "extract_seconds": t_extract,
+            "fscore_mesh": fit_metrics.get("fscore_mesh"), "export": export, "compare": cmp}
+
+
+def _row(mesh, r, t_uv, t_total, extra=""):
+    bad = r["flipped_area_percent"] + r["folded_area_percent"]
+    return (f"| {mesh} | {r['method']} | {r['faces']} | {r['charts']} | {r['seam_length']:.2f} | "
+            f"{r['distortion_metric']:.3f} | {r['distortion_conformal']:.3f} | {r['distortion_area']:.3f} | "
+            f"{bad:.2f} | {r['uv_overlap_percent']:.2f} | {r['utilization']:.2f} | {t_uv:.1f} | {t_total} | {extra} |")
+
+
+def targets(mesh: str, ours: dict, xa: dict, export_seconds: float) -> str:
+    checks = [("seam<=xatlas/4", ours["seam_length"] <= xa["seam_length"] / 4),
+              ("distortion<=0.5", ours["distortion_metric"] <= 0.5),
+              ("flip+fold<0.1%", ours["flipped_area_percent"] + ours["folded_area_percent"] < 0.1),
+              ("util>=0.6", ours["utilization"] >= 0.6),
+              ("faster", export_seconds < xa["seconds"])]
+    if mesh in SINGLE_PART:
+        checks.insert(1, ("islands<=6", ours["charts"] <= 6))
+    return ", ".join(f"{name} {'yes' if ok else 'NO'}" for name, ok in checks)
+
+
+def section(results: list[dict], args) -> str:
+    head = ("| mesh | method | faces | charts | seam length | distortion metric | conformal | area | "
+            "flipped+folded % | overlap % | utilization | UV time s | total s | targets |")
+    lines = [f"## {SECTION}", "",
+             f"`benchmarks/atlas_vs_xatlas.py` ({time.strftime('%Y-%m-%d')}): `mna fit` fast preset, 3 charts, "
+             f"{args.time_budget:g} s budget; `mna extract --grid {args.grid}`; texture {args.size}², padding 8. "
+             "One harness (`texture.harness.measure`, unit-ball frame, input mesh as reference) for every row. "
+             "`mna` = our packed atlas; `xatlas` = xatlas (defaults, unit-ball frame) on the *same* reconstructed "
+             "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + pack, xatlas = its "
+             "`generate`; total: ours = export (atlas + texture + write), plus fit and extract for the run.", "",
+             f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+             f"load average {os.getloadavg()[0]:.1f} at the end.", "", head, "|" + "---|" * 14]
+    for res in results:
+        cmp, exp = res["compare"], res["export"]
+        ours, xa = cmp["methods"][0], cmp["methods"][1]
+        total = exp["timings"]["export_total"]
+        lines.append(_row(res["mesh"], ours, ours["seconds"], f"{total:.1f} (fit {res['fit_seconds']:.0f}, "
+                          f"extract {res['extract_seconds']:.0f})", targets(res["mesh"], ours, xa, total)))
+        for r in cmp["methods"][1:]:
+            lines.append(_row(res["mesh"], r, r["seconds"], "", ""))
+        a = exp["atlas"]
+        lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts | | | | | | | | | "
+                     f"| doubly covered {a['doubly_covered_percent']:.2f} % (before {a['doubly_covered_percent_before']:.1f} %),"
+                     f" F-score drop {a.get('fscore_drop', float('nan')):.2f}, fit fscore_mesh "
+                     f"{res['fscore_mesh'] if res['fscore_mesh'] is not None else float('nan'):.1f} |")
+    lines += ["", "Per-run details (sweep, per-file timings): RUN/compare.md and RUN/atlas.json of each run.", ""]
+    return "\n".join(lines)
+
+
+def write_section(text: str) -> None:
+    """Replace (or append) our section of RESULTS.md, re-read just before writing."""
+    current = RESULTS.read_text() if RESULTS.is_file() else "# Benchmark results\n"
+    pattern = re.compile(rf"^## {SECTION}\n.*?(?=^## |\Z)", re.S | re.M)
+    body = text.rstrip() + "\n\n"
+    new = pattern.sub(lambda _: body, current) if pattern.search(current) else current.rstrip() + "\n\n" + body
+    write_text(RESULTS, new.rstrip() + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", type=Path, default=MESHES, help=f"mesh folder (default {MESHES})")
+    ap.add_argument("--only", default="", help="comma-separated mesh stems (default: all)")
+    ap.add_argument("--time-budget", type=float, default=300.0, help="fit seconds per mesh (default 300)")
+    ap.add_argument("--grid", type=int, default=128, help="mna extract --grid (default 128)")
+    ap.add_argument("--size", type=int, default=2048, help="texture size (default 2048)")
+    ap.add_argument("--sweep", action="store_true", help="also run compare's xatlas sweep")
+    ap.add_argument("--work", type=Path, default=ROOT / "benchmarks" / "runs", help="run folders (git-ignored)")
+    ap.add_argument("--no-write", action="store_true", help="print the section instead of writing RESULTS.md")
+    args = ap.parse_args(argv)
+    if not args.meshes.is_dir():
+        print(f"mesh folder not found: {args.meshes}", file=sys.stderr)
+        return 2
+    only = {s for s in args.only.split(",") if s}
+    meshes = sorted(p for p in args.meshes.iterdir() if p.suffix in (".obj", ".off", ".ply") and
+                    (not only or p.stem in only))
+    results = []
+    for mesh in meshes:
+        print(f"== {mesh.name}", flush=True)
+        results.append(run_one(mesh, args.work, args.time_budget, args.grid, args.sweep, args.size))
+        text = section(results, args)
+        if not args.no_write:
+            write_section(text)  # after every mesh, so a long run leaves partial results
+    print(section(results, args))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
