@@ -1,0 +1,150 @@
+"""Fit quality per CPU budget on the shared real meshes; writes the ``## fit_quality`` section.
+
+    .venv/bin/python benchmarks/fit_quality.py                      # 300 s per mesh, all meshes
+    .venv/bin/python benchmarks/fit_quality.py --budget 60 --only bunny,eight --no-write
+
+For every mesh in ../shared/data/meshes: the ``fast`` preset with 3 charts (and 1 chart on
+the open surfaces) under a wall-clock budget, then DESIGN's metrics; next to each, the
+"oracle" F-score of two independent 25,000-point samples of the input surface (the
+ceiling at this point count). Also steps/s of the ``paper`` preset on this machine.
+Quality targets (issue 2): fscore_mesh >= 97 and distortion_metric <= 0.5 on the closed
+meshes of genus 0-2 (bunny, spot, bob_tri, eight).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from mna import config as C  # noqa: E402
+from mna.data import load_surface  # noqa: E402
+from mna.fit import Fitter  # noqa: E402
+from mna.metrics import chamfer_fscore  # noqa: E402
+from mna.run import fit_run  # noqa: E402
+
+RESULTS = ROOT / "benchmarks" / "RESULTS.md"
+MESHES = ROOT.parent / "shared" / "data" / "meshes"
+CLOSED = ("bunny.off", "spot.obj", "bob_tri.obj", "eight.off")
+OPEN = ("tshirt.obj", "face.obj", "inspired_mesh.obj")
+SEVERAL = ("cesium_milk_truck.obj",)
+
+
+def oracle_fscore(path: Path, points: int = 25000) -> float:
+    s = load_surface(path)
+    a = s.sample(points, np.random.default_rng(1))
+    b = s.sample(points, np.random.default_rng(2))
+    return chamfer_fscore(a, b).fscore
+
+
+def paper_steps_per_second(path: Path, steps: int) -> float:
+    cfg = C.paper()
+    s = load_surface(path)
+    f = Fitter(cfg, s, torch.device("cpu"))
+    f.train_step()  # warm-up
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        f.train_step()
+    return steps / (time.perf_counter() - t0)
+
+
+def run_one(path: Path, charts: int, budget: float, work: Path) -> dict:
+    cfg = C.fast()
+    cfg.model.charts = charts
+    cfg.time_budget = budget
+    cfg.device = "cpu"
+    t0 = time.perf_counter()
+    res = fit_run(str(path), work / f"{path.stem}_k{charts}", cfg, progress_bar=False, log=lambda s: None)
+    wall = time.perf_counter() - t0
+    m = res.metrics
+    return {"mesh": path.name, "charts": charts, "steps": res.steps, "sps": res.steps / res.seconds,
+            "wall": wall, **{k: m[k] for k in ("fscore_mesh", "chamfer_mesh", "fscore_pcl", "precision_mesh",
+                                                 "recall_mesh", "distortion_metric", "distortion_conformal",
+                                                 "distortion_area", "occupancy_rate", "degenerate_charts")}}
+
+
+def table(rows: list[dict], oracle: dict) -> str:
+    head = ("| mesh | K | fscore_mesh | oracle F | chamfer_mesh | fscore_pcl | P / R (mesh) | d_metric | "
+            "d_conformal | d_area | occupancy % | steps | steps/s | wall s |\n|" + "---|" * 14)
+    lines = [head]
+    for r in rows:
+        lines.append(
+            f"| {r['mesh']} | {r['charts']} | {r['fscore_mesh']:.2f} | {oracle[r['mesh']]:.2f} | "
+            f"{r['chamfer_mesh']:.2e} | {r['fscore_pcl']:.2f} | {r['precision_mesh']:.1f} / {r['recall_mesh']:.1f} | "
+            f"{r['distortion_metric']:.3f} | {r['distortion_conformal']:.3f} | {r['distortion_area']:.3f} | "
+            f"{' / '.join(f'{o:.0f}' for o in r['occupancy_rate'])} | {r['steps']} | {r['sps']:.2f} | {r['wall']:.0f} |")
+    return "\n".join(lines)
+
+
+def write_section(name: str, text: str) -> None:
+    """Replace (or append) the ``## name`` section of RESULTS.md, re-read just before writing."""
+    from mna.atomic import write_text
+
+    current = RESULTS.read_text() if RESULTS.is_file() else "# Benchmark results\n"
+    pattern = re.compile(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
+    new = (pattern.sub(lambda _: text.rstrip("\n") + "\n\n", current) if pattern.search(current)
+           else current.rstrip("\n") + "\n\n" + text.rstrip("\n") + "\n")
+    write_text(RESULTS, new)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", type=Path, default=MESHES)
+    ap.add_argument("--budget", type=float, default=300.0, help="seconds of fitting per mesh (default 300)")
+    ap.add_argument("--only", default="", help="comma-separated mesh stems to run (default: all)")
+    ap.add_argument("--paper-steps", type=int, default=10, help="steps timed for the paper preset (0 = skip)")
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args(argv)
+    if not args.meshes.is_dir():
+        print(f"fit_quality: mesh folder not found: {args.meshes}", file=sys.stderr)
+        return 2
+    only = {s for s in args.only.split(",") if s}
+    jobs = [(n, 3) for n in CLOSED + SEVERAL + OPEN] + [(n, 1) for n in OPEN]
+    jobs = [(n, k) for n, k in jobs if (args.meshes / n).is_file() and (not only or Path(n).stem in only)]
+    rows, oracle = [], {}
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, k in jobs:
+            path = args.meshes / name
+            oracle.setdefault(name, oracle_fscore(path))
+            r = run_one(path, k, args.budget, Path(tmp))
+            rows.append(r)
+            print(f"{name} K={k}: F_mesh {r['fscore_mesh']:.2f} (oracle {oracle[name]:.2f}), "
+                  f"d_metric {r['distortion_metric']:.3f}, {r['steps']} steps, {r['sps']:.2f} steps/s", flush=True)
+    paper_sps = None
+    if args.paper_steps and (args.meshes / "bunny.off").is_file():
+        paper_sps = paper_steps_per_second(args.meshes / "bunny.off", args.paper_steps)
+        print(f"paper preset: {paper_sps:.2f} steps/s", flush=True)
+    cfg = C.fast()
+    text = (
+        "## fit_quality\n\n"
+        f"`benchmarks/fit_quality.py --budget {args.budget:.0f}`: preset `fast` (width {cfg.model.chart_width}, "
+        f"{cfg.uv_samples} UV samples/chart, {cfg.targets} fresh targets/step, L_dist on {cfg.dist_samples} "
+        f"positives/chart, lr {cfg.lr} with cosine decay from {cfg.lr_decay_start:.0%} of the budget), seed 0, "
+        f"{args.budget:.0f} s of fitting per mesh. Machine: {platform.machine()}, {os.cpu_count()} cores, "
+        f"torch {torch.__version__} (CPU, {torch.get_num_threads()} threads); load average at start {load:.1f}. "
+        "Metrics in the unit-ball frame, 25,000 points each side; oracle F = two independent "
+        "25,000-point samples of the input surface.\n\n"
+        + table(rows, oracle) + "\n\n"
+        + (f"Paper preset (width 512, 5,000 UV samples, 2,500 targets): **{paper_sps:.2f} steps/s** on this CPU "
+           f"(bunny, 3 charts, {args.paper_steps} steps).\n" if paper_sps else "")
+    )
+    print(text)
+    if not args.no_write:
+        write_section("fit_quality", text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
