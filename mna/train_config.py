@@ -1,0 +1,268 @@
+"""Typed configuration for training the conditional atlas on a dataset of shapes.
+
+The atlas parts (``model``, ``loss``, ``ablation``) are the fit stage's own dataclasses, so
+the objective (:func:`mna.objective.atlas_losses`) and inference read them unchanged through
+:meth:`TrainConfig.fit_config`. Loading is strict: unknown keys and wrong types are errors
+(:func:`mna.config.from_dict`), lists are checked here. The resolved config is saved beside
+every training run and every reconstruction.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+from mna import config as fit_config_mod
+from mna.config import AblationConfig, FitConfig, LossConfig, ModelConfig
+from mna.errors import MnaError
+
+LAYOUTS = ("meshes", "shapenet", "cloth3d")
+INPUTS = ("points", "image")
+ENCODERS = ("pointnet", "resnet18")
+
+
+@dataclass
+class DataConfig:
+    """Where the shapes are and what one batch item holds (see docs/train.md for the layouts)."""
+
+    layout: str = "meshes"
+    """meshes (folder of meshes + ``<split>.lst``), shapenet (Occupancy-Networks preprocessed
+    ShapeNet) or cloth3d (preprocessed CLOTH3D++)."""
+    root: str = ""
+    """Dataset folder."""
+    classes: list = field(default_factory=list)
+    """Class folders to use (shapenet: synset ids such as 02691156; cloth3d: tshirt, dress, ...);
+    empty = every class folder that has the split file."""
+    input: str = "points"
+    """Encoder input: points (a point cloud) or image (one rendered view, shapenet only)."""
+    input_points: int = 2500
+    """Points of the input cloud fed to the encoder."""
+    target_points: int = 2500
+    """Target surface points per item for L_rec (the paper draws the input and target from
+    the same random subset: the smaller is a prefix of the larger)."""
+    mesh_cache_points: int = 0
+    """meshes layout: 0 samples fresh surface points every time; N > 0 samples N points once
+    per mesh (deterministically) and draws subsets of them, like the point-cloud layouts."""
+    image_size: int = 224
+    """Image side in pixels after resizing (224 for ImageNet weights; the renders are 137)."""
+    views: int = 24
+    """Rendered views per object in ``img_choy2016`` (each view is one item)."""
+    train_split: str = "train"
+    val_split: str = "val"
+    test_split: str = "test"
+    workers: int = 0
+    """DataLoader worker processes per rank (0 = load in the training process)."""
+
+
+@dataclass
+class EncoderConfig:
+    """The encoder that turns an input into the latent code ``z (B, D)``, ``D = model.latent``."""
+
+    kind: str = "pointnet"
+    """pointnet (point clouds; no batch norm) or resnet18 (images; torchvision)."""
+    pointnet_widths: list = field(default_factory=lambda: [64, 128, 1024])
+    """Widths of PointNet's shared per-point MLP; the last is the max-pooled feature."""
+    pretrained: bool = False
+    """resnet18: start from ImageNet weights if they are already in the local torch hub cache
+    (never downloaded); the run records which weights were used."""
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run needs; saved as ``config.yaml`` in the training folder."""
+
+    preset: str = "paper"
+    out: str = "runs/train"
+    """Training folder: config.yaml, checkpoint.pt, log.csv (or TensorBoard events), metrics.json."""
+    model: ModelConfig = field(default_factory=lambda: ModelConfig(latent=1024, label_width=512))
+    loss: LossConfig = field(default_factory=LossConfig)
+    ablation: AblationConfig = field(default_factory=AblationConfig)
+    encoder: EncoderConfig = field(default_factory=EncoderConfig)
+    data: DataConfig = field(default_factory=DataConfig)
+    uv_samples: int = 5000
+    """UV samples per batch item, split evenly over the K charts (paper: 5,000)."""
+    dist_samples: int = 0
+    """Positives per chart and item whose Jacobian enters L_dist (0 = all, as the paper)."""
+    batch_size: int = 32
+    """Effective batch over all ranks (paper: 32); each of W ranks takes batch_size / W."""
+    epochs: int = 150
+    lr: float = 1e-3
+    """Adam learning rate."""
+    lr_milestones: list = field(default_factory=lambda: [120, 140, 145])
+    """Epochs after which the lr is multiplied by ``lr_gamma`` (paper: 120, 140, 145)."""
+    lr_gamma: float = 0.1
+    amp: bool = True
+    """Mixed precision (autocast fp16 + GradScaler) on CUDA; always off on the CPU. Steps whose
+    scaled gradients are not finite are skipped; after ``amp_max_skips`` in a row it turns off."""
+    amp_max_skips: int = 20
+    seed: int = 0
+    device: str = "auto"
+    """auto (CUDA when present), cpu or cuda."""
+    threads: int = 0
+    """torch CPU threads per process (0 = torch's default)."""
+    checkpoint_every: int = 0
+    """Also write checkpoint.pt every this many steps (0 = only at the end of each epoch)."""
+    log_every: int = 10
+    """Log losses every this many steps."""
+    val_every: int = 3
+    """Validate every this many epochs (paper: 3) and after the last; 0 = never."""
+    val_shapes: int = 64
+    """Validation items per validation (0 = the whole split)."""
+    val_points: int = 5000
+    """Points per shape for the validation Chamfer / F-score."""
+    tau: float = 0.5
+    eta: float = 0.4
+    c_samples: int = 20000
+    """UV samples per chart to estimate each shape's c at inference."""
+    eval_points: int = 25000
+    eval_uv_samples: int = 20000
+    grid: int = 256
+
+    # -- derived ---------------------------------------------------------------------------
+    def fit_config(self, latent: int | None = None) -> FitConfig:
+        """The per-shape view: what ``atlas_losses``, inference and the run folder read."""
+        model = copy.deepcopy(self.model)
+        if latent is not None:
+            model.latent = latent
+        return FitConfig(
+            preset=f"train:{self.preset}", model=model, loss=copy.deepcopy(self.loss),
+            ablation=copy.deepcopy(self.ablation), uv_samples=self.uv_samples // self.model.charts,
+            targets=self.data.target_points, dist_samples=self.dist_samples, lr=self.lr,
+            tau=self.tau, eta=self.eta, c_samples=self.c_samples, seed=self.seed, device=self.device,
+            threads=self.threads, eval_points=self.eval_points, eval_uv_samples=self.eval_uv_samples,
+            grid=self.grid,
+        )
+
+    def validate(self) -> "TrainConfig":
+        d, m = self.data, self.model
+        if d.layout not in LAYOUTS:
+            raise MnaError(f"data.layout must be one of {', '.join(LAYOUTS)}, got {d.layout!r}")
+        if d.input not in INPUTS:
+            raise MnaError(f"data.input must be points or image, got {d.input!r}")
+        if self.encoder.kind not in ENCODERS:
+            raise MnaError(f"encoder.kind must be pointnet or resnet18, got {self.encoder.kind!r}")
+        wanted = "pointnet" if d.input == "points" else "resnet18"
+        if self.encoder.kind != wanted:
+            raise MnaError(f"data.input {d.input} needs encoder.kind {wanted}, got {self.encoder.kind}")
+        if d.input == "image" and d.layout != "shapenet":
+            raise MnaError(f"data.input image needs data.layout shapenet (rendered views), got {d.layout}")
+        if not d.root:
+            raise MnaError("data.root is empty: set it to the dataset folder")
+        if m.latent < 1:
+            raise MnaError(f"model.latent must be at least 1 for the conditional atlas, got {m.latent}")
+        if m.charts < 1:
+            raise MnaError(f"model.charts must be at least 1, got {m.charts}")
+        if self.uv_samples < m.charts:
+            raise MnaError(f"uv_samples ({self.uv_samples}) must be at least model.charts ({m.charts})")
+        for name in ("batch_size", "epochs", "log_every", "val_points", "c_samples", "eval_points",
+                     "eval_uv_samples", "amp_max_skips"):
+            if getattr(self, name) < 1:
+                raise MnaError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("input_points", "target_points", "image_size", "views"):
+            if getattr(d, name) < 1:
+                raise MnaError(f"data.{name} must be positive, got {getattr(d, name)}")
+        for name in ("checkpoint_every", "val_every", "val_shapes", "threads", "dist_samples"):
+            if getattr(self, name) < 0:
+                raise MnaError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if d.workers < 0 or d.mesh_cache_points < 0:
+            raise MnaError("data.workers and data.mesh_cache_points must be >= 0")
+        if not self.lr > 0:
+            raise MnaError(f"lr must be positive, got {self.lr}")
+        if self.grid < 2:
+            raise MnaError(f"grid must be at least 2, got {self.grid}")
+        if not 0 < self.eta <= 1:
+            raise MnaError(f"eta must be in (0, 1], got {self.eta}")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise MnaError(f"device must be auto, cpu or cuda, got {self.device!r}")
+        return self
+
+
+def paper() -> TrainConfig:
+    """The paper's schedule: Adam 1e-3, 150 epochs, x0.1 at 120/140/145, batch 32, 2,500 input
+    points, 5,000 UV samples per item, D = 1024, charts 4 x 512 (label nets 4 x 512)."""
+    return TrainConfig()
+
+
+def tiny() -> TrainConfig:
+    """Trains a handful of shapes on a 2-core CPU in minutes (tests, smoke runs)."""
+    return TrainConfig(
+        preset="tiny",
+        model=ModelConfig(charts=1, chart_width=32, label_width=32, label_depth=2, octaves=4, latent=32),
+        encoder=EncoderConfig(pointnet_widths=[32, 64]),
+        data=DataConfig(input_points=256, target_points=256, image_size=64),
+        uv_samples=400, batch_size=4, epochs=30, lr=3e-3, lr_milestones=[24, 28], amp=False, threads=1,
+        log_every=5, val_every=0, val_shapes=4, val_points=1000, c_samples=2000, eval_points=2000,
+        eval_uv_samples=2000, grid=32,
+    )
+
+
+PRESETS = {"paper": paper, "tiny": tiny}
+
+
+def preset(name: str) -> TrainConfig:
+    if name not in PRESETS:
+        raise MnaError(f"unknown training preset {name!r}; choose from {', '.join(PRESETS)}")
+    return PRESETS[name]()
+
+
+# list fields: (section or None, name, item type). from_dict handles scalars and dataclasses.
+_LISTS = ((None, "lr_milestones", int), ("data", "classes", str), ("encoder", "pointnet_widths", int))
+
+
+def from_dict(data: dict, base: TrainConfig | None = None) -> TrainConfig:
+    """Build a TrainConfig from a mapping, strictly. Keys left out come from ``base`` (or the
+    preset named by ``preset``, else ``paper``)."""
+    if not isinstance(data, dict):
+        raise MnaError(f"config must be a mapping, got {type(data).__name__}")
+    data = copy.deepcopy(data)
+    name = data.get("preset", "paper")
+    if base is None:
+        if not isinstance(name, str):
+            raise MnaError(f"config.preset must be str, got {name!r}")
+        base = preset(name) if name in PRESETS else paper()
+    lists = {}
+    for section, key, item in _LISTS:
+        holder = data if section is None else data.get(section)
+        if isinstance(holder, dict) and key in holder:
+            value = holder.pop(key)
+            where = f"config.{key}" if section is None else f"config.{section}.{key}"
+            if isinstance(value, item) and item is str:
+                value = [v.strip() for v in value.split(",") if v.strip()]
+            if not isinstance(value, list) or not all(isinstance(v, item) and not isinstance(v, bool) for v in value):
+                raise MnaError(f"{where} must be a list of {item.__name__}, got {value!r}")
+            lists[(section, key)] = value
+    merged = _merge(fit_config_mod.to_dict(base), data)
+    for section, key, _ in _LISTS:  # keep the base's lists out of the scalar loader
+        holder = merged if section is None else merged[section]
+        if not isinstance(holder, dict):
+            raise MnaError(f"config.{section} must be a mapping, got {type(holder).__name__}")
+        holder.pop(key)
+    cfg = fit_config_mod.from_dict(merged, TrainConfig)
+    for section, key, _ in _LISTS:
+        target = cfg if section is None else getattr(cfg, section)
+        base_holder = base if section is None else getattr(base, section)
+        setattr(target, key, lists.get((section, key), list(getattr(base_holder, key))))
+    return cfg
+
+
+def _merge(base: dict, override: dict) -> dict:
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load(path: str | Path) -> TrainConfig:
+    """Strictly load a YAML training config (unknown keys / wrong types: MnaError)."""
+    return from_dict(fit_config_mod.load_yaml(path))
+
+
+def to_dict(cfg: TrainConfig) -> dict:
+    return fit_config_mod.to_dict(cfg)
+
+
+def field_names() -> list[str]:
+    return [f.name for f in fields(TrainConfig)]

@@ -1,0 +1,72 @@
+"""Encoders and the conditional atlas: shapes, invariances, and baking z into a per-shape atlas exactly."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+from mna import train_config
+from mna.conditional import ConditionalAtlas, bake
+from mna.encoders import PointNet, ResNet18
+from mna.errors import MnaError
+from mna.inference import uniform_uv
+
+
+def test_pointnet_shape_and_permutation_invariance():
+    torch.manual_seed(0)
+    enc = PointNet(16, [8, 12, 24])
+    pts = torch.randn(3, 50, 3)
+    z = enc(pts)
+    assert z.shape == (3, 16) and (z >= 0).all()
+    perm = torch.randperm(50)
+    torch.testing.assert_close(enc(pts[:, perm]), z)
+    # no batch statistics: an item's code does not depend on the rest of the batch
+    torch.testing.assert_close(enc(pts[1:2]), z[1:2])
+    assert not any(isinstance(m, torch.nn.modules.batchnorm._BatchNorm) for m in enc.modules())
+
+
+@pytest.mark.parametrize("atlasnet", [False, True])
+def test_bake_equals_the_conditional_atlas(atlasnet):
+    """z enters as a bias: the baked latent-free atlas gives the same points, occupancy, Jacobians."""
+    cfg = train_config.tiny()
+    cfg.model.charts, cfg.model.latent = 2, 8
+    cfg.ablation.atlasnet = atlasnet
+    torch.manual_seed(1)
+    model = ConditionalAtlas.from_config(cfg)
+    z = torch.randn(1, 8)
+    model.atlas.c.fill_(0.7)
+    baked = bake(model.atlas, z)
+    assert baked.latent == 0 and baked.chart.hidden[0].v.shape[1] == 2
+    uv = uniform_uv(2, 300, torch.Generator().manual_seed(0))
+    ref = model.atlas.chart(uv, z, jacobian=True)
+    out = baked.chart(uv, None, jacobian=True)
+    torch.testing.assert_close(out.x, ref.x, atol=2e-6, rtol=1e-5)
+    torch.testing.assert_close(out.jac, ref.jac, atol=2e-6, rtol=1e-5)
+    torch.testing.assert_close(baked.occupancy_value(uv, out.x), model.atlas.occupancy_value(uv, ref.x, z),
+                               atol=2e-6, rtol=1e-5)
+    assert float(baked.c) == pytest.approx(0.7)
+    with pytest.raises(ValueError, match=r"\(1, 8\)"):
+        bake(model.atlas, torch.randn(2, 8))
+
+
+def test_batched_codes_condition_each_shape_separately():
+    """Item b of a batch equals a batch of one with z_b (the model's (K, B, N) layout)."""
+    cfg = train_config.tiny()
+    cfg.model.charts = 2
+    torch.manual_seed(2)
+    model = ConditionalAtlas.from_config(cfg)
+    z = model.encode(torch.randn(3, 40, 3))
+    uv = uniform_uv(2, 64, torch.Generator().manual_seed(1), batch=3)
+    x = model.atlas.chart(uv, z).x
+    for b in range(3):
+        torch.testing.assert_close(x[:, b:b + 1], model.atlas.chart(uv[:, b:b + 1], z[b:b + 1]).x)
+
+
+def test_resnet18_encoder_or_clear_error():
+    try:
+        enc = ResNet18(16, pretrained=True)
+    except MnaError as exc:
+        assert "torchvision" in str(exc) and "pip install" in str(exc)
+        pytest.skip(f"torchvision unusable here: {str(exc)[:200]}")
+    z = enc(torch.rand(2, 3, 64, 64))
+    assert z.shape == (2, 16)
+    assert enc.weights.startswith("imagenet") or enc.weights.startswith("random")
