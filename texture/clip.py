@@ -27,6 +27,7 @@ class Clipped(NamedTuple):
     faces: np.ndarray  # (F', 3) int64, same orientation as the input faces
     field: np.ndarray  # (V',) field value (0 on cut vertices)
     source_face: np.ndarray  # (F',) input face each output face came from
+    source_vertex: np.ndarray  # (V',) input vertex each output vertex is (-1 for cut points)
 
 
 def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray) -> Clipped:
@@ -80,7 +81,8 @@ def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray) -> Clippe
     used[new_faces.ravel()] = True
     remap = np.cumsum(used) - 1
     order = np.argsort(src, kind="stable")
-    return Clipped(all_attrs[used], remap[new_faces][order], all_field[used], src[order])
+    source = np.concatenate([np.arange(V), np.full(len(cut_attrs), -1)])
+    return Clipped(all_attrs[used], remap[new_faces][order], all_field[used], src[order], source[used])
 
 
 def grid_faces(resolution: int) -> np.ndarray:

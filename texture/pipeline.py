@@ -42,7 +42,12 @@ def load_input(run: str | os.PathLike):
     except yaml.YAMLError as exc:
         raise InputError(f"cannot parse {cfg_path}: {exc}") from exc
     path = cfg.get("input") if isinstance(cfg, dict) else None
-    if not path or not Path(path).is_file():
+    if not path:
+        return None, None
+    # `mna fit` stores the path as given: relative to where it ran (usually the run's parent)
+    candidates = [Path(path), Path(run) / path, Path(run).parent / path]
+    path = next((c for c in candidates if c.is_file()), None)
+    if path is None:
         return None, None
     try:
         loaded = trimesh.load(path, process=False)

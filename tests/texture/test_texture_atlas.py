@@ -128,3 +128,12 @@ def test_sphere_charts_fixture_is_consistent():
     assert uv.shape == (2, 33, 33, 2) and xyz.shape == (2, 33, 33, 3) and occ.shape == (2, 33, 33)
     # grid convention: uv[k, i, j] = (u_j, v_i)
     assert uv[0, 0, 32].tolist() == [1.0, -1.0] and uv[0, 32, 0].tolist() == [-1.0, 1.0]
+
+
+def test_build_atlas_is_deterministic(sphere_run):
+    charts = load_charts(sphere_run / "charts.npz")
+    a = build_atlas(charts, AtlasConfig(resolution=128, padding=2))
+    b = build_atlas(charts, AtlasConfig(resolution=128, padding=2))
+    np.testing.assert_array_equal(a.mesh.uv, b.mesh.uv)
+    np.testing.assert_array_equal(a.mesh.faces, b.mesh.faces)
+    assert a.stats["doubly_covered_percent"] == b.stats["doubly_covered_percent"]
