@@ -42,14 +42,19 @@ def _mna(*args: str) -> float:
     return time.perf_counter() - t0
 
 
-def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size: int) -> dict:
+def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size: int, reuse: bool) -> dict:
     from texture.compare import compare_run
     from texture.pipeline import export_run
 
     run = work / mesh.stem
-    t_fit = _mna("fit", str(mesh), "-o", str(run), "--preset", "fast", "--charts", "3",
-                 "--time-budget", str(budget), "--no-progress")
-    t_extract = _mna("extract", str(run), "--grid", str(grid))
+    timing_file = run / "benchmark_fit_seconds.json"
+    if reuse and timing_file.is_file() and (run / "charts.npz").is_file():
+        t_fit, t_extract = json.loads(timing_file.read_text())
+    else:
+        t_fit = _mna("fit", str(mesh), "-o", str(run), "--preset", "fast", "--charts", "3",
+                     "--time-budget", str(budget), "--no-progress")
+        t_extract = _mna("extract", str(run), "--grid", str(grid))
+        timing_file.write_text(json.dumps([t_fit, t_extract]))
     export = export_run(run, size=size, padding=8)
     cmp = compare_run(run, sweep=sweep, size=size, padding=8)
     fit_metrics = json.loads((run / "metrics.json").read_text())
@@ -122,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", type=int, default=2048, help="texture size (default 2048)")
     ap.add_argument("--sweep", action="store_true", help="also run compare's xatlas sweep")
     ap.add_argument("--work", type=Path, default=ROOT / "benchmarks" / "runs", help="run folders (git-ignored)")
+    ap.add_argument("--reuse", action="store_true", help="reuse fitted runs in --work (skip fit and extract)")
     ap.add_argument("--no-write", action="store_true", help="print the section instead of writing RESULTS.md")
     args = ap.parse_args(argv)
     if not args.meshes.is_dir():
@@ -133,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     for mesh in meshes:
         print(f"== {mesh.name}", flush=True)
-        results.append(run_one(mesh, args.work, args.time_budget, args.grid, args.sweep, args.size))
+        results.append(run_one(mesh, args.work, args.time_budget, args.grid, args.sweep, args.size, args.reuse))
         text = section(results, args)
         if not args.no_write:
             write_section(text)  # after every mesh, so a long run leaves partial results
