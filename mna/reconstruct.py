@@ -119,13 +119,9 @@ def reduce_mean(rows: list[dict], keys, ctx=None) -> dict:
 # -- mna reconstruct ----------------------------------------------------------------------------
 def _encoder_input(cfg: TrainConfig, input_path: Path, surface, seed: int) -> torch.Tensor:
     if cfg.data.input == "points":
-        if input_path.suffix.lower() in IMAGE_EXTS:
-            raise MnaError(f"this checkpoint encodes point clouds; {input_path.name} is an image")
         rng = np.random.default_rng(seed)
         pts = surface.sample(cfg.data.input_points, rng)
         return torch.from_numpy(pts.astype(np.float32))
-    if input_path.suffix.lower() not in IMAGE_EXTS:
-        raise MnaError(f"this checkpoint encodes images (.jpg .png); got {input_path.name}")
     from PIL import Image
 
     try:
@@ -152,6 +148,11 @@ def reconstruct_run(checkpoint: str | Path, input_path: str | Path, out: str | P
     input_path = Path(input_path)
     if not input_path.is_file():
         raise MnaError(f"input file not found: {input_path}")
+    is_image = input_path.suffix.lower() in IMAGE_EXTS
+    if cfg.data.input == "points" and is_image:
+        raise MnaError(f"this checkpoint encodes point clouds; {input_path.name} is an image")
+    if cfg.data.input == "image" and not is_image:
+        raise MnaError(f"this checkpoint encodes images (.jpg .png); got {input_path.name}")
     if cfg.data.input == "image" and reference is None:
         raise MnaError("this checkpoint encodes images: give --reference MESH_OR_CLOUD (frame and metrics)")
     surface = load_surface(reference or input_path)
