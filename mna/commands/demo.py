@@ -21,7 +21,7 @@ def register(subparsers) -> None:
     p.add_argument("--charts", type=int, default=3)
     p.add_argument("--time-budget", type=float, default=150.0, metavar="SECONDS", help="fit time (default 150)")
     p.add_argument("--res", type=int, default=512, help="render resolution (default 512)")
-    p.add_argument("--spp", type=int, default=64, help="render samples per pixel (default 64)")
+    p.add_argument("--spp", type=int, default=32, help="render samples per pixel (default 32)")
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=run_demo)
 
@@ -45,7 +45,7 @@ def run_demo(args: argparse.Namespace) -> int:
         ("export", ["export", str(out)]),
         ("compare", ["compare", str(out)]),
         ("render", ["render", str(out), "--res", str(args.res), "--spp", str(args.spp),
-                    "--heatmap", "metric,charts", "--seed", str(args.seed)]),
+                    "--views", "front,three_quarter", "--heatmap", "metric,charts", "--seed", str(args.seed)]),
     ]
     timings = {}
     for name, argv in stages:
