@@ -58,8 +58,24 @@ def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size:
     export = export_run(run, size=size, padding=8)
     cmp = compare_run(run, sweep=sweep, size=size, padding=8)
     fit_metrics = json.loads((run / "metrics.json").read_text())
+    ft = fit_metrics.get("timings", {})
     return {"mesh": mesh.stem, "run": str(run), "fit_seconds": t_fit, "extract_seconds": t_extract,
-            "fscore_mesh": fit_metrics.get("fscore_mesh"), "export": export, "compare": cmp}
+            "fscore_mesh": fit_metrics.get("fscore_mesh"), "fit_steps": round(ft.get("fit", 0) * ft.get("steps_per_second", 0)),
+            "fit_distortion_metric": fit_metrics.get("distortion_metric"),
+            "harness_on_charts": harness_on_charts(run), "export": export, "compare": cmp}
+
+
+def harness_on_charts(run: Path) -> float:
+    """The harness's distortion_metric on the run's own chart grid mesh (to set beside the fit's)."""
+    import numpy as np
+
+    from texture.harness import measure
+    from texture.uvmesh import Normalization, make_uv_mesh
+
+    with np.load(run / "charts.npz") as z:
+        mesh = make_uv_mesh(z["vertices"], z["faces"], z["vertex_uv"])
+        norm = Normalization(z["center"], float(z["scale"]))
+    return measure(mesh, normalization=norm, resolution=64).summary["distortion_metric"]
 
 
 def _row(mesh, r, t_uv, t_total, extra=""):
@@ -103,8 +119,9 @@ def section(results: list[dict], args) -> str:
         a = exp["atlas"]
         lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts | | | | | | | | | "
                      f"| doubly covered {a['doubly_covered_percent']:.2f} % (before {a['doubly_covered_percent_before']:.1f} %),"
-                     f" F-score drop {a.get('fscore_drop', float('nan')):.2f}, fit fscore_mesh "
-                     f"{res['fscore_mesh'] if res['fscore_mesh'] is not None else float('nan'):.1f} |")
+                     f" F-score drop {a.get('fscore_drop', float('nan')):.2f}; fit: {res['fit_steps']} steps, fscore_mesh "
+                     f"{res['fscore_mesh'] if res['fscore_mesh'] is not None else float('nan'):.1f}, distortion_metric "
+                     f"{res['fit_distortion_metric']:.3f} (harness on charts.npz: {res['harness_on_charts']:.3f}) |")
     lines += ["", "Per-run details (sweep, per-file timings): RUN/compare.md and RUN/atlas.json of each run.", ""]
     return "\n".join(lines)
 
