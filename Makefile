@@ -1,10 +1,9 @@
 # Two commands on a fresh machine: `make demo` and `make test`. Both run `make setup` first.
 VENV_BIN := .venv/bin
 DEMO_OUT ?= demo_run
-export DRJIT_LIBLLVM_PATH ?= $(firstword $(wildcard /usr/lib/x86_64-linux-gnu/libLLVM-19.so /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 /usr/lib/aarch64-linux-gnu/libLLVM-19.so))
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test bench bench-fit bench-atlas bench-render bench-train clean
 
 setup:
 	@bash scripts/setup.sh
@@ -15,8 +14,20 @@ demo: setup
 test: setup
 	$(VENV_BIN)/python -m pytest -q -ra tests
 
-bench: setup
+# Benchmarks (long; results go to benchmarks/RESULTS.md). Not part of `make test`.
+bench: bench-fit bench-atlas bench-render bench-train
+
+bench-fit: setup
 	$(VENV_BIN)/python benchmarks/fit_quality.py
+
+bench-atlas: setup
+	$(VENV_BIN)/python benchmarks/atlas_vs_xatlas.py
+
+bench-render: setup
+	$(VENV_BIN)/python benchmarks/render.py
+
+bench-train: setup
+	$(VENV_BIN)/python benchmarks/train_throughput.py
 
 clean:
 	rm -rf $(DEMO_OUT) .pytest_cache tests/_artifacts
