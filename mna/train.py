@@ -27,14 +27,14 @@ from pathlib import Path
 import torch
 import torch.distributed as dist
 from torch import nn
-from torch.utils.data import DataLoader, DistributedSampler
+from torch.utils.data import DataLoader
 
 from mna import datasets, train_config
 from mna.atomic import atomic_path, write_json, write_text
 from mna.conditional import CHECKPOINT_FORMAT, ConditionalAtlas, load_state
 from mna.config import save_yaml
+from mna.distributed import Distributed, ResumableSampler, rank_param_divergence, setup_distributed
 from mna.errors import MnaError
-from mna.fit import resolve_device
 from mna.objective import LossTerms, atlas_losses
 from mna.train_config import TrainConfig
 
@@ -44,51 +44,6 @@ METRICS = "metrics.json"
 LOG_CSV = "log.csv"
 LOG_COLUMNS = ("step", "epoch", "lr", "loss", "rec", "occ", "dist", "shapes_per_second",
                "val_chamfer_pcl", "val_fscore_pcl")
-
-
-@dataclass
-class Distributed:
-    rank: int
-    world: int
-    local_rank: int
-    device: torch.device
-
-    @property
-    def active(self) -> bool:
-        return self.world > 1
-
-    @property
-    def main(self) -> bool:
-        return self.rank == 0
-
-
-def setup_distributed(device_name: str) -> Distributed:
-    """Join the process group torchrun describes (env://), or run alone without one."""
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    if world <= 1:
-        return Distributed(0, 1, 0, resolve_device(device_name))
-    rank, local = int(os.environ["RANK"]), int(os.environ.get("LOCAL_RANK", "0"))
-    device = resolve_device(device_name)
-    if device.type == "cuda":
-        device = torch.device("cuda", local)
-        torch.cuda.set_device(device)
-    if not dist.is_initialized():
-        dist.init_process_group("nccl" if device.type == "cuda" else "gloo", init_method="env://")
-    return Distributed(rank, world, local, device)
-
-
-class ResumableSampler(DistributedSampler):
-    """DistributedSampler that can start ``start`` positions into its epoch (mid-epoch resume)."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.start = 0
-
-    def __iter__(self):
-        return iter(list(super().__iter__())[self.start:])
-
-    def __len__(self) -> int:
-        return self.num_samples - self.start
 
 
 class TrainStep(nn.Module):
@@ -369,18 +324,6 @@ def validate(trainer: Trainer, val_set) -> dict:
     return reduce_mean(rows, ("chamfer_pcl", "fscore_pcl"), ctx)
 
 
-def rank_param_divergence(model: nn.Module, ctx: Distributed) -> float:
-    """Largest |parameter difference| between any rank and rank 0 (0 when alone)."""
-    if not ctx.active:
-        return 0.0
-    flat = torch.cat([p.detach().reshape(-1).float() for p in model.parameters()])
-    ref = flat.clone()
-    dist.broadcast(ref, 0)
-    diff = (flat - ref).abs().max().reshape(1)
-    dist.all_reduce(diff, op=dist.ReduceOp.MAX)
-    return float(diff)
-
-
 def _finish(trainer: Trainer, out: Path, val_set) -> dict:
     cfg, ctx = trainer.cfg, trainer.ctx
     divergence = rank_param_divergence(trainer.model, ctx)
@@ -420,12 +363,27 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+#: keys a resumed run may change: where and how it runs, not what it learns.
+RESUME_MAY_CHANGE = {"out", "device", "threads", "log_every", "checkpoint_every", "data.root", "data.workers"}
+
+
+def _comparable(cfg: TrainConfig) -> dict:
+    """Flat ``section.key -> value`` of the config, less :data:`RESUME_MAY_CHANGE`."""
+    flat = {}
+    for key, value in train_config.to_dict(cfg).items():
+        for k, v in (value.items() if isinstance(value, dict) else [(None, value)]):
+            name = key if k is None else f"{key}.{k}"
+            if name not in RESUME_MAY_CHANGE:
+                flat[name] = v
+    return flat
+
+
 def run(args: argparse.Namespace) -> int:
     cfg = build_config(args.config, args.out)
     if args.resume and (Path(cfg.out) / CONFIG).is_file():
-        saved = load_resume_config(cfg.out)
-        if train_config.to_dict(saved) != train_config.to_dict(cfg):
-            differs = [k for k, v in train_config.to_dict(cfg).items() if train_config.to_dict(saved).get(k) != v]
+        saved, given = _comparable(load_resume_config(cfg.out)), _comparable(cfg)
+        differs = sorted(k for k in set(saved) | set(given) if saved.get(k) != given.get(k))
+        if differs:
             raise MnaError(f"--resume: {args.config} differs from {Path(cfg.out) / CONFIG} in {', '.join(differs)}")
     result = train(cfg, resume=args.resume, progress=not args.no_progress)
     if result.interrupted:

@@ -59,6 +59,8 @@ def test_reconstruction_flows_into_export_extract_and_fit_resume(trained, tmp_pa
     assert main(["reconstruct", str(ckpt), str(mesh), "-o", str(run), "--grid", "48"]) == 0
     assert main(["export", str(run), "--size", "256"]) == 0
     assert (run / "mesh.obj").is_file() and (run / "mesh.glb").is_file()
+    assert main(["compare", str(run), "--no-sweep", "--size", "256"]) == 0
+    assert json.loads((run / "compare.json").read_text())
     assert main(["extract", str(run), "--points", "2000", "--grid", "32"]) == 0
     # the checkpoint is a fit checkpoint at step 0: `mna fit --resume` refines the shape per-shape
     assert main(["fit", str(mesh), "-o", str(run), "--resume", "--steps", "5", "--no-progress"]) == 0
@@ -110,7 +112,7 @@ def test_resume_with_a_different_architecture(trained, tmp_path, capsys):
     saved["model"]["chart_width"] = 64
     path = tmp_path / "c.yaml"
     train_config.fit_config_mod.save_yaml(path, saved)
-    _one_line_exit_2(["train", str(path), "--resume", "--no-progress"], capsys, "differs from")
+    _one_line_exit_2(["train", str(path), "--resume", "--no-progress"], capsys, "in model.chart_width")
     # the same through the state itself (config.yaml removed): load_state_dict refuses the weights
     out = tmp_path / "copy"
     out.mkdir()
