@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .charts import ChartGrids
-from .coverage import POINTS, chamfer_fscore
+from mna.pointmetrics import POINTS, chamfer_fscore
 from .geometry import sample_surface
 from .islands import uv_islands
 from .pack import Packing, pack_islands
