@@ -41,7 +41,7 @@ def run_demo(args: argparse.Namespace) -> int:
         mesh.export(tmp)
     stages = [
         ("fit", ["fit", str(src), "-o", str(out), "--charts", str(args.charts), "--seed", str(args.seed),
-                 "--time-budget", str(args.time_budget)]),
+                 "--time-budget", str(args.time_budget), "--grid", "128"]),
         ("export", ["export", str(out)]),
         ("compare", ["compare", str(out)]),
         ("render", ["render", str(out), "--res", str(args.res), "--spp", str(args.spp),
