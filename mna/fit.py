@@ -22,7 +22,14 @@ from mna.objective import atlas_losses
 
 
 def resolve_device(name: str) -> torch.device:
-    """``auto`` -> CUDA when present, else CPU; ``cuda`` without a GPU is an error."""
+    """``auto`` -> CUDA when present, else CPU; ``cuda`` without a GPU is an error.
+
+    Also flushes denormals to zero on the CPU: Softplus with beta = 100 evaluates
+    ``exp(-100 |x|)``, which underflows into denormals for most activations, and denormal
+    arithmetic made every chart evaluation about 8x slower (measured: 117 ms -> 15 ms for
+    3.5M activations). Values below 1e-38 change nothing here.
+    """
+    torch.set_flush_denormal(True)
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     if name == "cuda" and not torch.cuda.is_available():
