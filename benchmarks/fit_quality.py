@@ -17,7 +17,6 @@ import os
 import platform
 import re
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -65,7 +64,8 @@ def run_one(path: Path, charts: int, budget: float, work: Path) -> dict:
     cfg.time_budget = budget
     cfg.device = "cpu"
     t0 = time.perf_counter()
-    res = fit_run(str(path), work / f"{path.stem}_k{charts}", cfg, progress_bar=False, log=lambda s: None)
+    name = path.stem if charts == 3 else f"{path.stem}_k{charts}"  # 3-chart runs feed atlas_vs_xatlas --reuse
+    res = fit_run(str(path), work / name, cfg, progress_bar=False, log=lambda s: None)
     wall = time.perf_counter() - t0
     m = res.metrics
     return {"mesh": path.name, "charts": charts, "steps": res.steps, "sps": res.steps / res.seconds,
@@ -104,6 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=300.0, help="seconds of fitting per mesh (default 300)")
     ap.add_argument("--only", default="", help="comma-separated mesh stems to run (default: all)")
     ap.add_argument("--paper-steps", type=int, default=10, help="steps timed for the paper preset (0 = skip)")
+    ap.add_argument("--work", type=Path, default=ROOT / "benchmarks" / "runs", help="run folders (git-ignored)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args(argv)
     if not args.meshes.is_dir():
@@ -114,14 +115,13 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(n, k) for n, k in jobs if (args.meshes / n).is_file() and (not only or Path(n).stem in only)]
     rows, oracle = [], {}
     load = os.getloadavg()[0]
-    with tempfile.TemporaryDirectory() as tmp:
-        for name, k in jobs:
-            path = args.meshes / name
-            oracle.setdefault(name, oracle_fscore(path))
-            r = run_one(path, k, args.budget, Path(tmp))
-            rows.append(r)
-            print(f"{name} K={k}: F_mesh {r['fscore_mesh']:.2f} (oracle {oracle[name]:.2f}), "
-                  f"d_metric {r['distortion_metric']:.3f}, {r['steps']} steps, {r['sps']:.2f} steps/s", flush=True)
+    for name, k in jobs:
+        path = args.meshes / name
+        oracle.setdefault(name, oracle_fscore(path))
+        r = run_one(path, k, args.budget, args.work)
+        rows.append(r)
+        print(f"{name} K={k}: F_mesh {r['fscore_mesh']:.2f} (oracle {oracle[name]:.2f}), "
+              f"d_metric {r['distortion_metric']:.3f}, {r['steps']} steps, {r['sps']:.2f} steps/s", flush=True)
     paper_sps = None
     if args.paper_steps and (args.meshes / "bunny.off").is_file():
         paper_sps = paper_steps_per_second(args.meshes / "bunny.off", args.paper_steps)
