@@ -121,6 +121,7 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         **trimmed.stats,
         **coverage_stats(charts, trimmed.pieces, reference_points, cfg.seed),
         "utilization": packing.utilization,
+        "packer": packing.packer,
         "uv_scale": packing.scale,
         "texels_per_chart_unit": packing.texels_per_unit,
         "resolution": packing.resolution,

@@ -46,3 +46,24 @@ def test_export_on_fit_run(tiny_run):
     assert info["uv_metrics"]["uv_overlap_percent"] == 0.0
     assert info["uv_metrics"]["uv_inside_unit_square"]
     assert info["atlas"]["islands"] >= 1 and (tiny_run / "mesh.glb").stat().st_size > 0
+
+
+def test_export_on_folded_single_chart_torus_fit(tmp_path):
+    # one chart cannot cover a torus: a short fit folds and its one island fills the whole
+    # atlas; export used to fail with "packed island 0 is not a rigid copy of its input"
+    from texture.pack import verify_packing
+    from texture.export import read_back
+    from texture.islands import uv_islands
+
+    src = tmp_path / "torus.ply"
+    shapes.torus().export(src)
+    run = tmp_path / "run"
+    assert main(["fit", str(src), "-o", str(run), "--preset", "tiny", "--charts", "1", "--steps", "60",
+                 "--no-progress", "--seed", "0", "--threads", "1"]) == 0
+    assert main(["export", str(run), "--size", "256"]) == 0
+    info = json.loads((run / "atlas.json").read_text())
+    assert info["uv_metrics"]["uv_overlap_percent"] == 0.0 and info["uv_metrics"]["uv_inside_unit_square"]
+    assert info["atlas"]["utilization"] > 0.5
+    back = read_back(run / "mesh.obj")
+    assert back.uv.min() >= 0 and back.uv.max() <= 1
+    assert verify_packing(back.uv, back.faces, uv_islands(back.faces, back.uv), 256)[0] == 0

@@ -1,0 +1,153 @@
+"""Packing at one texel density whatever xatlas does: rotations, mirrors, oversized,
+folded, flipped and degenerate islands, and the shelf fallback (regressions of
+``packed island N is not a rigid copy of its input``)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import CENTER, SCALE
+
+import texture.pack as pack
+from mna.cli import main
+from texture.atlas import AtlasConfig, _merge, build_atlas
+from texture.charts import load_charts, save_charts
+from texture.clip import grid_faces
+from texture.export import read_back
+from texture.islands import uv_islands
+from texture.pack import pack_islands, similarity_fit, verify_packing
+from texture.raster import coverage_count
+from texture.trim import trim_charts
+
+
+def _rot(a):
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+
+
+def _signed_area(uv, faces):
+    t = uv[faces]
+    return 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+
+
+def assert_valid_packing(pk, uv_in, faces, island):
+    """No overlap (each island rasterised alone), inside [0,1]^2, one scale, rigid copies."""
+    res = pk.resolution
+    assert pk.uv[np.unique(faces)].min() >= 0 and pk.uv[np.unique(faces)].max() <= 1
+    covered = np.stack([coverage_count(pk.uv[faces[island == i]], res, res) > 0 for i in np.unique(island)])
+    assert covered.sum(0).max() == 1
+    assert verify_packing(pk.uv, faces, island, res)[0] == 0 and pk.overlap_texels == 0
+    # every edge keeps its length times the one shared scale, every face its signed area up to
+    # one sign per island (xatlas's 90-degree "rotation" is a transpose, i.e. a mirror)
+    e_in = np.linalg.norm(uv_in[faces[:, 1]] - uv_in[faces[:, 0]], axis=1)
+    e_out = np.linalg.norm(pk.uv[faces[:, 1]] - pk.uv[faces[:, 0]], axis=1)
+    np.testing.assert_allclose(e_out, pk.scale * e_in, rtol=1e-6, atol=1e-12)
+    a_in, a_out = _signed_area(uv_in, faces), _signed_area(pk.uv, faces)
+    for i in np.unique(island):
+        f = island == i
+        sign = np.sign(a_out[f] @ a_in[f]) or 1.0
+        np.testing.assert_allclose(a_out[f], sign * pk.scale**2 * a_in[f], rtol=1e-6, atol=1e-15)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.3, np.pi / 2, 2.5, -1.2])
+@pytest.mark.parametrize("mirror", [False, True])
+def test_similarity_fit_recovers_known_transform(angle, mirror):
+    rng = np.random.default_rng(0)
+    src = rng.standard_normal((40, 2))
+    M = _rot(angle) @ (np.diag([1.0, -1.0]) if mirror else np.eye(2))
+    dst = 3.5 * src @ M.T + np.array([2.0, -5.0])
+    fit = similarity_fit(src, dst, rng.uniform(0.5, 2.0, 40))
+    assert fit.scale == pytest.approx(3.5, rel=1e-12)
+    np.testing.assert_allclose(fit.rotation, M, atol=1e-12)
+    np.testing.assert_allclose(fit.translation, [2.0, -5.0], atol=1e-12)
+
+
+def test_similarity_fit_prefers_rotation_unless_clearly_mirrored():
+    # a symmetric target (a segment) is fitted as well by a rotation as by a mirror: rotation
+    src = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    assert np.linalg.det(similarity_fit(src, src[::-1] * 2).rotation) == pytest.approx(1.0)
+    # zero spread or zero weight: identity, centroid to centroid
+    fit = similarity_fit(np.ones((3, 2)), np.full((3, 2), 4.0))
+    np.testing.assert_array_equal(fit.rotation, np.eye(2))
+    np.testing.assert_allclose(fit.translation, [3.0, 3.0])
+
+
+def _grid_island(G, half, offset=(0.0, 0.0)):
+    lin = np.linspace(-half, half, G)
+    u, v = np.meshgrid(lin, lin, indexing="xy")
+    return np.column_stack([u.ravel(), v.ravel()]) + offset, grid_faces(G)
+
+
+def _awkward_islands():
+    """A dominant island with a UV fold (flipped triangles), a rotated one, a degenerate
+    (collinear) one and small ones, all over the same chart-local UV range."""
+    parts = []
+    uv, f = _grid_island(12, 1.0)
+    fold = uv[:, 0] > 0.6  # fold the right strip back over itself: flipped triangles
+    uv[fold, 0] = 1.2 - uv[fold, 0]
+    parts.append((uv, f))
+    uv, f = _grid_island(6, 0.4)
+    parts.append((uv @ _rot(0.7).T, f))
+    parts.append((np.array([[0.0, 0.0], [0.5, 0.5], [1.0, 1.0]]), np.array([[0, 1, 2]])))  # zero area
+    for s in (0.15, 0.1):
+        parts.append(_grid_island(4, s))
+    uvs, faces, island, off = [], [], [], 0
+    for i, (u, f) in enumerate(parts):
+        uvs.append(u)
+        faces.append(f + off)
+        island.append(np.full(len(f), i))
+        off += len(u)
+    return np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
+
+
+def test_pack_folded_dominant_and_degenerate_islands():
+    uv, faces, island = _awkward_islands()
+    assert (_signed_area(uv, faces) < 0).any() and (_signed_area(uv, faces)[island == 2] == 0).all()
+    pk = pack_islands(uv, faces, island, resolution=128, padding=2)
+    assert pk.packer == "xatlas"
+    assert_valid_packing(pk, uv, faces, island)
+    assert pk.utilization > 0.3
+
+
+def test_pack_falls_back_to_shelf_when_xatlas_never_fits(monkeypatch):
+    uv, faces, island = _awkward_islands()
+    monkeypatch.setattr(pack, "_attempt", lambda *a, **k: None)  # e.g. an island xatlas always splits
+    pk = pack_islands(uv, faces, island, resolution=128, padding=2)
+    assert pk.packer == "shelf"
+    assert_valid_packing(pk, uv, faces, island)
+    assert pk.utilization > 0.1
+
+
+def _write_folded_run(run):
+    """One chart whose domain fills the whole UV square and whose surface folds over twice
+    (a Z in 3D): the single island is larger than the atlas at xatlas's first guesses."""
+    G = 48
+    lin = np.linspace(-1.0, 1.0, G)
+    u, v = np.meshgrid(lin, lin, indexing="xy")
+    x = np.where(u < -0.3, u, np.where(u < 0.3, -0.6 - u, u - 1.2))  # goes right, back, right again
+    z = 0.05 * np.clip(u + 0.3, 0, 0.6) + 0.05 * np.clip(u - 0.3, 0, None)
+    xyz = np.stack([x, v, z], -1)[None] * 0.5 * SCALE + CENTER
+    occ = (1.49 - 0.4 * np.maximum(np.abs(u), np.abs(v)) ** 8)[None]  # in domain everywhere
+    save_charts(run / "charts.npz", np.stack([u, v], -1)[None], xyz, occ, 0.5, CENTER, SCALE)
+    return run
+
+
+def test_folded_single_chart_atlas_keeps_invariants(tmp_path):
+    run = _write_folded_run(tmp_path)
+    charts = load_charts(run / "charts.npz")
+    atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2))
+    _, uv_local, faces, _, island = _merge(trim_charts(charts, AtlasConfig().trim).pieces)
+    np.testing.assert_array_equal(atlas.mesh.faces, faces)
+    assert_valid_packing(atlas.packing, uv_local, faces, island)
+    assert atlas.stats["utilization"] > 0.5
+
+
+def test_export_folded_single_chart_run(tmp_path, capsys):
+    run = _write_folded_run(tmp_path)
+    assert main(["export", str(run), "--size", "256", "--padding", "8"]) == 0
+    info = json.loads((run / "atlas.json").read_text())
+    assert info["uv_metrics"]["uv_overlap_percent"] == 0.0 and info["uv_metrics"]["uv_inside_unit_square"]
+    back = read_back(run / "mesh.obj")
+    assert back.uv.min() >= 0 and back.uv.max() <= 1
+    isl = uv_islands(back.faces, back.uv)
+    assert verify_packing(back.uv, back.faces, isl, 256)[0] == 0
