@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from mna.model import NeuralAtlas
+from mna.model import NeuralAtlas, flush_denormals
 
 #: samples per chart per forward chunk at inference.
 CHUNK = 16384
@@ -36,12 +36,13 @@ class Evaluated(NamedTuple):
 def evaluate(model: NeuralAtlas, uv: torch.Tensor, z: torch.Tensor | None = None, jacobian: bool = False) -> Evaluated:
     """Chunked ``phi``, ``o`` (and Jacobian) at ``uv (K, B, N, 2)``."""
     xs, os_, js = [], [], []
-    for chunk in uv.split(CHUNK, dim=2):
-        out = model.chart(chunk, z, jacobian=jacobian)
-        xs.append(out.x)
-        os_.append(model.occupancy_value(chunk, out.x, z))
-        if jacobian:
-            js.append(out.jac)
+    with flush_denormals():
+        for chunk in uv.split(CHUNK, dim=2):
+            out = model.chart(chunk, z, jacobian=jacobian)
+            xs.append(out.x)
+            os_.append(model.occupancy_value(chunk, out.x, z))
+            if jacobian:
+                js.append(out.jac)
     return Evaluated(torch.cat(xs, 2), torch.cat(os_, 2), torch.cat(js, 2) if jacobian else None)
 
 

@@ -17,14 +17,37 @@ differentiable with respect to the weights for the distortion loss.
 """
 from __future__ import annotations
 
+import contextlib
 import math
-from typing import NamedTuple
+from typing import Iterator, NamedTuple
 
 import torch
 from torch import nn
 from torch.nn import functional as F
 
 SOFTPLUS_BETA = 100.0
+_flushing = False
+
+
+@contextlib.contextmanager
+def flush_denormals(enabled: bool = True) -> Iterator[None]:
+    """Flush denormals to zero on the CPU inside the block, then restore the previous state.
+
+    Softplus with beta = 100 evaluates ``exp(-100 |x|)``, which underflows into denormals for
+    most activations; denormal arithmetic made every chart evaluation about 8x slower here
+    (117 ms -> 15 ms for 3.5M activations). It is a process-wide CPU mode, and some scipy
+    code (cKDTree builds) misbehaves under it, so it is only ever switched on around torch
+    work and off again (``enabled=False`` turns it off for a nested block).
+    """
+    global _flushing
+    previous = _flushing
+    torch.set_flush_denormal(enabled)
+    _flushing = enabled
+    try:
+        yield
+    finally:
+        torch.set_flush_denormal(previous)
+        _flushing = previous
 
 
 class BatchedLinear(nn.Module):

@@ -7,6 +7,8 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
+from mna.model import flush_denormals
+
 #: query rows per torch.cdist chunk on CUDA (bounds memory at chunk x reference).
 CDIST_CHUNK = 4096
 
@@ -21,8 +23,9 @@ class Nearest(NamedTuple):
 def nearest(query: torch.Tensor, reference: torch.Tensor, workers: int = -1) -> Nearest:
     """Nearest ``reference (R, 3)`` point of every ``query (Q, 3)`` point (no gradient)."""
     if query.device.type == "cpu":
-        tree = cKDTree(reference.detach().double().numpy())
-        d, i = tree.query(query.detach().double().numpy(), k=1, workers=workers)
+        with flush_denormals(False):  # scipy runs in the CPU's normal mode
+            tree = cKDTree(reference.detach().double().numpy())
+            d, i = tree.query(query.detach().double().numpy(), k=1, workers=workers)
         return Nearest(torch.from_numpy(d**2).to(query.dtype), torch.from_numpy(i.astype(np.int64)))
     dists, idxs = [], []
     for chunk in query.detach().split(CDIST_CHUNK):

@@ -18,7 +18,6 @@ import argparse
 import math
 import os
 import platform
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -35,6 +34,8 @@ from mna.conditional import CHECKPOINT_FORMAT, ConditionalAtlas, load_state
 from mna.config import save_yaml
 from mna.distributed import Distributed, ResumableSampler, rank_param_divergence, setup_distributed
 from mna.errors import MnaError
+from mna.interrupt import graceful_sigint
+from mna.model import flush_denormals
 from mna.objective import LossTerms, atlas_losses
 from mna.train_config import TrainConfig
 
@@ -258,18 +259,8 @@ def _loop(trainer: Trainer, out: Path, logger: Logger, val_set, progress: bool, 
     from tqdm.auto import tqdm
 
     cfg, ctx = trainer.cfg, trainer.ctx
-    stop = {"requested": False}
-    previous = None
-    if not ctx.active:  # Ctrl-C: finish the step, checkpoint, stop (torchrun handles its own signals)
-        def on_sigint(signum, frame):
-            if stop["requested"]:
-                raise KeyboardInterrupt
-            stop["requested"] = True
-        try:
-            previous = signal.signal(signal.SIGINT, on_sigint)
-        except ValueError:
-            previous = None
-    try:
+    # Ctrl-C: finish the step, checkpoint, stop (torchrun handles its own signals)
+    with graceful_sigint(enabled=not ctx.active) as stop:
         while trainer.epoch < cfg.epochs:
             bar = tqdm(total=trainer.batches_per_epoch(), initial=trainer.batch_in_epoch, unit="batch",
                        desc=f"epoch {trainer.epoch + 1}/{cfg.epochs}", disable=not (progress and ctx.main),
@@ -278,7 +269,8 @@ def _loop(trainer: Trainer, out: Path, logger: Logger, val_set, progress: bool, 
             done_items = 0
             for batch in trainer.loader():
                 t0 = time.perf_counter()
-                stats = trainer.train_step(batch)
+                with flush_denormals():
+                    stats = trainer.train_step(batch)
                 trainer.elapsed += time.perf_counter() - t0
                 trainer.batch_in_epoch += 1
                 done_items += len(batch["index"]) * ctx.world
@@ -292,7 +284,7 @@ def _loop(trainer: Trainer, out: Path, logger: Logger, val_set, progress: bool, 
                     bar.set_postfix(rec=f"{float(stats[1]):.2e}", occ=f"{float(stats[2]):.3f}", refresh=False)
                 if cfg.checkpoint_every and trainer.step % cfg.checkpoint_every == 0:
                     _save(trainer, out, logger)
-                if stop["requested"] or (stop_at_step is not None and trainer.step >= stop_at_step):
+                if stop.requested or (stop_at_step is not None and trainer.step >= stop_at_step):
                     bar.close()
                     _save(trainer, out, logger)
                     return True
@@ -306,9 +298,6 @@ def _loop(trainer: Trainer, out: Path, logger: Logger, val_set, progress: bool, 
                 logger.log({"step": trainer.step, "epoch": trainer.epoch, "val_chamfer_pcl": m["chamfer_pcl"],
                             "val_fscore_pcl": m["fscore_pcl"]})
             _save(trainer, out, logger)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
     return False
 
 

@@ -123,3 +123,22 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_continues(torus_file, tmp_path):
     assert f"resuming from step {step}" in res.stdout
     assert torch.load(run / "checkpoint.pt", weights_only=False)["step"] == step + 20
     assert (run / "metrics.json").is_file()
+
+
+def _denormals_flushed() -> bool:
+    return (torch.tensor([1e-39], dtype=torch.float32) * 1.0).item() == 0.0
+
+
+def test_flush_to_zero_is_scoped(torus_file, tmp_path):
+    """FTZ speeds up Softplus(100) but is a process-wide mode: it must not outlive the torch work."""
+    from mna.model import flush_denormals
+
+    assert not _denormals_flushed()
+    with flush_denormals():
+        assert _denormals_flushed()
+        with flush_denormals(False):
+            assert not _denormals_flushed()
+        assert _denormals_flushed()
+    assert not _denormals_flushed()
+    fit_run(torus_file, tmp_path / "run", _tiny(5), progress_bar=False, log=lambda s: None)
+    assert not _denormals_flushed()

@@ -90,15 +90,3 @@ def fresh_sphere_run(tmp_path) -> Path:
 def icosphere() -> trimesh.Trimesh:
     return shapes.sphere(radius=1.0, subdivisions=3)
 
-
-@pytest.fixture(autouse=True)
-def _no_flush_denormal_leak():
-    """Undo ``torch.set_flush_denormal(True)``, which ``mna fit`` sets process-wide and never
-    restores: with flush-to-zero on, scipy's ``cKDTree`` build segfaults on some point sets
-    (the folded atlas's coverage check did), so one fit test would crash later tests."""
-    yield
-    import sys
-
-    torch = sys.modules.get("torch")
-    if torch is not None:
-        torch.set_flush_denormal(False)
