@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import cap_chart, sphere_charts
+from texture_helpers import cap_chart, sphere_charts
 
 from texture.atlas import AtlasConfig, build_atlas
 from texture.charts import ChartGrids, load_charts
@@ -111,7 +111,7 @@ def test_build_atlas_on_synthetic_sphere(sphere_run):
     assert s["fscore_drop"] <= 0.5
     assert atlas.mesh.uv.min() >= 0 and atlas.mesh.uv.max() <= 1
     # positions come back in the input frame: on the sphere of radius SCALE around CENTER
-    from conftest import CENTER, SCALE
+    from texture_helpers import CENTER, SCALE
 
     r = np.linalg.norm(atlas.mesh.vertices - CENTER, axis=1)
     np.testing.assert_allclose(r, SCALE, rtol=2e-3)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CENTER, color_function
+from texture_helpers import CENTER, color_function
 
 from mna import shapes
 from mna.cli import main
@@ -73,7 +73,7 @@ def test_uv_and_uv_metrics(tmp_path, capsys):
 
 def test_compare_tabulates_every_method(tmp_path, monkeypatch):
     import texture.compare as C
-    from conftest import write_sphere_run
+    from texture_helpers import write_sphere_run
 
     monkeypatch.setattr(C, "SWEEP_MAX_COST", (1.0, 8.0))
     monkeypatch.setattr(C, "SWEEP_MAX_ITERATIONS", (1,))

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import cap_chart
+from texture_helpers import cap_chart
 
 from mna import distortion as D
 from texture.clip import clip_mesh, grid_faces

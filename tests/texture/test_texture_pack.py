@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import CENTER, SCALE
+from texture_helpers import CENTER, SCALE
 
 import texture.pack as pack
 from mna.cli import main

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from conftest import color_function
+from texture_helpers import color_function
 
 from mna.errors import InputError
 from texture.export import export_textured, read_back

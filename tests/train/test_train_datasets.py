@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import N_POINTS, SYNSET, tiny_config, write_meshes_layout
+from train_helpers import N_POINTS, SYNSET, tiny_config, write_meshes_layout
 from mna import datasets
 from mna.cli import main
 from mna.errors import MnaError
@@ -92,7 +92,7 @@ def _write_config(tmp_path, root, layout="meshes"):
 
 
 def _bad_shapenet(tmp_path):
-    from conftest import write_shapenet_layout
+    from train_helpers import write_shapenet_layout
 
     root = write_shapenet_layout(tmp_path / "sn", images=False)
     obj = next(p for p in (root / SYNSET).iterdir() if p.is_dir())

@@ -101,7 +101,7 @@ def test_two_cpu_processes_gloo_end_identical(meshes_root, tmp_path, free_port):
 
 
 def test_torchrun_two_processes(meshes_root, tmp_path, free_port):
-    from conftest import subprocess_env
+    from train_helpers import subprocess_env
 
     cfg = _cfg(meshes_root, tmp_path / "tr", epochs=2)
     path = tmp_path / "c.yaml"

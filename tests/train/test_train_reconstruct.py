@@ -20,7 +20,7 @@ RUN_FILES = ("config.yaml", "checkpoint.pt", "metrics.json", "points.ply", "char
 @pytest.fixture(scope="session")
 def trained(tmp_path_factory):
     """A tiny 3-chart model trained on one sphere (radius 2.5, off the unit ball) until its atlas is usable."""
-    from conftest import write_meshes_layout
+    from train_helpers import write_meshes_layout
 
     base = tmp_path_factory.mktemp("trained")
     root = write_meshes_layout(base / "data", splits={"train": ["sphere"], "val": ["sphere"]})

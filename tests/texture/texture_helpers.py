@@ -1,0 +1,92 @@
+"""Synthetic neural-atlas outputs with closed forms, for the texture tests.
+
+``sphere_charts`` covers the unit sphere with azimuthal-equidistant caps: chart ``k`` maps
+``(u, v)`` with ``r = |(u, v)|`` to the point at polar angle ``theta = r * theta_max``
+around axis ``a_k``. Its occupancy ``occ = 1.5 - r`` puts the domain boundary
+(``occ = 0.5``) exactly on the circle ``r = 1``, i.e. the cap ``theta < theta_max``.
+Two caps of 105 degrees around +z and -z overlap in the band 75..105 degrees.
+
+Analytic metric: radial stretch ``theta_max``, tangential ``theta_max sin(theta) / theta``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from mna import shapes
+from texture.charts import save_charts
+
+CENTER = np.array([0.5, -1.0, 2.0])
+SCALE = 2.0
+
+
+def _frame(axis: np.ndarray) -> np.ndarray:
+    """3x3 rotation whose third column is ``axis``."""
+    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    helper = np.array([1.0, 0, 0]) if abs(a[0]) < 0.9 else np.array([0, 1.0, 0])
+    e1 = np.cross(helper, a)
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(a, e1), a], 1)
+
+
+def cap_chart(G: int, theta_max: float, axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(uv (G,G,2), xyz unit frame (G,G,3), occ (G,G)) of one azimuthal-equidistant cap."""
+    lin = np.linspace(-1.0, 1.0, G)
+    u, v = np.meshgrid(lin, lin, indexing="xy")  # u varies along columns j, v along rows i
+    uv = np.stack([u, v], -1)
+    r = np.hypot(u, v)
+    theta = r * theta_max
+    safe = np.where(r > 0, r, 1.0)
+    local = np.stack([np.sin(theta) * u / safe, np.sin(theta) * v / safe, np.cos(theta)], -1)
+    xyz = local @ _frame(np.asarray(axis, float)).T
+    return uv, xyz, 1.5 - r
+
+
+def sphere_charts(G: int = 96, theta_max: float = np.radians(105), axes=((0, 0, 1), (0, 0, -1))):
+    parts = [cap_chart(G, theta_max, a) for a in axes]
+    uv = np.stack([p[0] for p in parts])
+    xyz = np.stack([p[1] for p in parts]) * SCALE + CENTER  # input frame
+    occ = np.stack([p[2] for p in parts])
+    return uv, xyz, occ
+
+
+def write_sphere_run(run: Path, G: int = 96, colored_input: bool = True, **kw) -> Path:
+    """A run folder with charts.npz of ``sphere_charts`` and config.yaml naming an input mesh."""
+    run.mkdir(parents=True, exist_ok=True)
+    uv, xyz, occ = sphere_charts(G, **kw)
+    save_charts(run / "charts.npz", uv, xyz, occ, 0.5, CENTER, SCALE)
+    mesh = shapes.sphere(radius=1.0, subdivisions=4)
+    if colored_input:
+        mesh.visual.vertex_colors = color_function(mesh.vertices)
+    mesh.apply_scale(SCALE)
+    mesh.apply_translation(CENTER)
+    mesh.export(run / "input.ply")
+    (run / "config.yaml").write_text(f"input: {run / 'input.ply'}\nseed: 0\n")
+    return run
+
+
+def color_function(unit_xyz: np.ndarray) -> np.ndarray:
+    """RGBA uint8 colour of a unit-frame point: linear in position (so exact under interpolation)."""
+    rgb = np.clip((np.asarray(unit_xyz) + 1.0) * 0.5, 0, 1) * 255
+    return np.column_stack([np.round(rgb), np.full(len(rgb), 255)]).astype(np.uint8)
+
+
+@pytest.fixture(scope="session")
+def sphere_run(tmp_path_factory) -> Path:
+    """Read-only synthetic run (copy it before writing into it)."""
+    return write_sphere_run(tmp_path_factory.mktemp("sphere_run"))
+
+
+@pytest.fixture
+def fresh_sphere_run(tmp_path) -> Path:
+    """A writable synthetic run (coarser grid than ``sphere_run``: CLI tests are end to end)."""
+    return write_sphere_run(tmp_path / "run", G=64)
+
+
+@pytest.fixture(scope="session")
+def icosphere() -> trimesh.Trimesh:
+    return shapes.sphere(radius=1.0, subdivisions=3)
+
