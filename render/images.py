@@ -20,22 +20,13 @@ def _oiio():
 
 
 def read_image(path: str | Path) -> np.ndarray:
-    """Read any image OpenImageIO knows as float32 ``(H, W, C)`` (8-bit data scaled to 0..1)."""
-    oiio = _oiio()
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"image not found: {path}")
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise ValueError(f"cannot read image {path}: {oiio.geterror() or 'unknown format'}")
-    try:
-        img = inp.read_image(format="float")
-    finally:
-        inp.close()
-    if img is None:
-        raise ValueError(f"cannot read image {path}: {oiio.geterror()}")
-    img = np.asarray(img, np.float32)
-    return img[..., None] if img.ndim == 2 else img
+    """Read any image OpenImageIO knows as float32 ``(H, W, C)`` (8-bit data scaled to 0..1).
+
+    One reader for the project: :func:`texture.textures.read_image` (its errors are ValueErrors).
+    """
+    from texture.textures import read_image as _read
+
+    return _read(path).astype(np.float32)
 
 
 def _write(path: Path, pixels: np.ndarray, fmt: str, attrs: dict) -> None:

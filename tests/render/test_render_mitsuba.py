@@ -125,8 +125,12 @@ def test_seeded_and_reproducible(variant, torus, tmp_path):
     xml = render_mesh(torus, tmp_path, opts).scenes["front"]
     a, b = render_xml(xml, variant, seed=3), render_xml(xml, variant, seed=3)
     c = render_xml(xml, variant, seed=4)
-    np.testing.assert_array_equal(a, b)
-    assert np.abs(a - c).max() > 0  # another seed, other samples
+    # Same seed, same samples. scalar_rgb splats image blocks from a thread pool and the
+    # Gaussian filter overlaps neighbouring blocks, so a border pixel's float32 sum can land
+    # in another order (seen: 1 ulp at 3 of 2,304 values); allow that ulp-level noise only,
+    # five orders of magnitude below what another seed changes.
+    np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    assert np.abs(a - c).max() > 1e-2  # another seed, other samples
 
 
 def test_llvm_missing_falls_back_to_scalar_with_warning(tmp_path, meshes):
