@@ -35,8 +35,3 @@ def nearest(query: torch.Tensor, reference: torch.Tensor, workers: int = -1) -> 
         idxs.append(j)
     return Nearest(torch.cat(dists), torch.cat(idxs))
 
-
-def nearest_numpy(query: np.ndarray, reference: np.ndarray, workers: int = -1) -> tuple[np.ndarray, np.ndarray]:
-    """Numpy version for metrics: ``(dist (Q,), index (Q,))`` (Euclidean, not squared)."""
-    tree = cKDTree(reference)
-    return tree.query(query, k=1, workers=workers)

@@ -22,6 +22,7 @@ def register(subparsers) -> None:
     budget.add_argument("--time-budget", type=float, default=None, metavar="SECONDS",
                         help="fit for this many seconds (the lr schedule follows elapsed time)")
     p.add_argument("--resume", action="store_true", help="continue from RUN/checkpoint.pt with RUN/config.yaml")
+    p.add_argument("--grid", type=int, default=None, help="UV grid resolution of the extracted chart meshes (default 256)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     ab = p.add_argument_group("ablations (paper Sec. 5)")
@@ -66,6 +67,8 @@ def build_config(args: argparse.Namespace):
         cfg.time_budget = args.time_budget
     if args.threads is not None:
         cfg.threads = args.threads
+    if args.grid is not None:
+        cfg.grid = args.grid
     if args.no_reformulation:
         cfg.ablation.occupancy_on_uv = True
     if args.naive_classifier:

@@ -112,3 +112,12 @@ def test_config_with_unknown_key(capsys, sphere_file, tmp_path, out):
     _fails(capsys, ["fit", sphere_file, "-o", str(out), "--config", str(cfg)], "unknown key")
     cfg.write_text("lr: fast\n")
     _fails(capsys, ["fit", sphere_file, "-o", str(out), "--config", str(cfg)], "config.lr must be float")
+
+
+def test_fit_cli_end_to_end_with_grid(capsys, torus_file, out):
+    code = main(["fit", torus_file, "-o", str(out), "--preset", "tiny", "--steps", "5", "--grid", "20",
+                 "--no-progress", "--device", "cpu"])
+    assert code == 0, capsys.readouterr().err
+    z = np.load(out / "charts.npz")
+    assert z["xyz"].shape == (3, 20, 20, 3)
+    assert "fscore_mesh" in capsys.readouterr().out
