@@ -162,9 +162,10 @@ def write_report(run_dir: str | Path, figures: list[str | Path] | None = None,
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise ValueError(f"run folder not found: {run_dir}")
-    if figures is None:
-        figures = sorted((run_dir / "renders").glob("figure*.png"))
-    figs = [Path(f) if Path(f).is_absolute() else run_dir / f for f in figures]
+    if figures is None:  # globbed paths already start with run_dir
+        figs = sorted((run_dir / "renders").glob("figure*.png"))
+    else:
+        figs = [Path(f) if Path(f).is_absolute() else run_dir / f for f in figures]
     for f in figs:
         if not f.is_file():
             raise ValueError(f"figure not found: {f}")

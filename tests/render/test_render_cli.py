@@ -82,6 +82,16 @@ def test_report_is_self_contained(rendered_run):
     assert "src=\"renders/" not in page  # images are inlined, not linked
 
 
+def test_report_from_a_relative_run_folder(rendered_run, monkeypatch):
+    """`mna demo -o demo_run` passes a relative folder: figure paths must not be doubled."""
+    from render.report import write_report
+
+    monkeypatch.chdir(rendered_run.parent)
+    rep = write_report(rendered_run.name)
+    assert "renders/figure.png" in rep.markdown.read_text()
+    assert rep.html.read_text().count("data:image/png;base64,") >= 1
+
+
 def test_render_mesh_cli(uv_run, tmp_path, fast_variant, capsys):
     out = tmp_path / "out"
     code = main(["render-mesh", str(uv_run / "xatlas" / "mesh.obj"), "-o", str(out), "--turntable", "2",
