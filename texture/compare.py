@@ -17,7 +17,6 @@ Every row is measured by :func:`texture.harness.measure` with the same reference
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
 
 import numpy as np
