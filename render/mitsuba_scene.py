@@ -119,7 +119,9 @@ def scene_dict(mesh_file: str, material: dict, camera: Camera, sphere: BoundingS
         "integrator": {"type": "path", "max_depth": int(preset.max_depth),
                        "hide_emitters": preset.background is not None},
         "sensor": sensor(camera, spp),
-        "mesh": {"type": "ply", "filename": mesh_file, "bsdf": material},
+        # two-sided: open surfaces and neural reconstructions show their back faces, which a
+        # one-sided diffuse BSDF renders black
+        "mesh": {"type": "ply", "filename": mesh_file, "bsdf": {"type": "twosided", "material": material}},
     }
     if preset.environment > 0:
         scene["environment"] = {"type": "constant", "radiance": rgb(preset.environment)}

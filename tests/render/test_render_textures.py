@@ -157,4 +157,4 @@ def test_scene_xml_structure(meshes):
         assert root.find("shape[@id='mesh']/string[@name='filename']").get("value") == "mesh.ply"
         assert len(root.findall("shape/emitter[@type='area']")) == len(p.lights)
         assert root.find("shape[@id='ground']") is not None
-        assert root.find("shape[@id='mesh']/bsdf/texture").get("name") == "reflectance"
+        assert root.find("shape[@id='mesh']/bsdf[@type='twosided']/bsdf/texture").get("name") == "reflectance"
