@@ -158,7 +158,8 @@ def make_figure(run_dirs: list[str | Path], out: str | Path, rows: tuple[str, ..
             if i == 0:
                 ax.set_title(col_titles[j], fontsize=9)
             if j == 0:
-                one_run_cap = f"\n{cap}" if cap and len(runs) == 1 else ""
+                # one line per number: a single rotated line overflows a row's height
+                one_run_cap = "\n" + cap.replace(" · ", "\n") if cap and len(runs) == 1 else ""
                 ax.set_ylabel(f"{method}{one_run_cap}", fontsize=9)
     if heat:
         bar = fig.colorbar(ScalarMappable(Normalize(heat["vmin"], heat["vmax"]), heat["cmap"]), ax=axes,
