@@ -26,7 +26,7 @@ from mna.errors import MnaError
 from mna.fit import Fitter, resolve_device
 from mna.inference import estimate_c, extract_grid, rejection_sample
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
-from mna.model import NeuralAtlas
+from mna.model import NeuralAtlas, flush_denormals
 
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint.pt"
@@ -96,7 +96,23 @@ def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: boo
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     device = resolve_device(cfg.device)
-    fitter = Fitter(cfg, surface, device)
+    # Flush-to-zero is per thread and inherited by threads created under it: switching it on
+    # before the model exists lets torch's worker pool start with it too (2x faster fits here).
+    # Extraction runs outside: its scipy work (Chamfer) stays in the CPU's normal mode.
+    with flush_denormals():
+        fitter = Fitter(cfg, surface, device)
+        result, fit_seconds = _optimise(fitter, cfg, surface, out, input_path, resume, callback, progress_bar, log)
+    if extract and not result.interrupted:
+        result.metrics = extract_run(out, timings={"fit": fit_seconds,
+                                                   "steps_per_second": fitter.step / max(fitter.elapsed, 1e-9)},
+                                     surface=surface, model=fitter.model, cfg=cfg)
+    return result
+
+
+def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input_path, resume: bool,
+              callback, progress_bar: bool, log) -> tuple[FitRunResult, float]:
+    """Resume if asked, optimise, then set c; returns the result (no metrics yet) and the fit time."""
+    device = fitter.device
     if resume:
         state = torch.load(out / CHECKPOINT, map_location=device, weights_only=False)
         try:
@@ -112,17 +128,13 @@ def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: boo
     fit_seconds = time.perf_counter() - t0
     if interrupted:
         log(f"interrupted at step {fitter.step}; checkpoint saved to {out / CHECKPOINT} (continue with --resume)")
-        return FitRunResult(out, True, fitter.step, fitter.elapsed, None)
+        return FitRunResult(out, True, fitter.step, fitter.elapsed, None), fit_seconds
     # c is part of the model from here on (a buffer saved with the checkpoint)
     gen = torch.Generator().manual_seed(cfg.seed + 1)
     fitter.model.c.fill_(float(estimate_c(fitter.model, gen, cfg.c_samples, cfg.eta,
                                           naive=cfg.ablation.naive_classifier)[0]))
     save_checkpoint(out, fitter, surface.normalization)
-    metrics = None
-    if extract:
-        metrics = extract_run(out, timings={"fit": fit_seconds, "steps_per_second": fitter.step / max(fitter.elapsed, 1e-9)},
-                              surface=surface, model=fitter.model, cfg=cfg)
-    return FitRunResult(out, False, fitter.step, fitter.elapsed, metrics)
+    return FitRunResult(out, False, fitter.step, fitter.elapsed, None), fit_seconds
 
 
 def load_model(run: str | Path, device: str = "cpu") -> tuple[NeuralAtlas, FitConfig, Normalization, dict]:
