@@ -66,12 +66,16 @@ class Surface:
 
     def sample(self, count: int, rng: np.random.Generator) -> np.ndarray:
         """``count`` points on the surface: area-uniform on a mesh, a random subset of a cloud."""
+        return self.sample_with_normals(count, rng)[0]
+
+    def sample_with_normals(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
+        """Like :meth:`sample` (same draws), plus each point's unit face normal on a mesh (None on a cloud)."""
         if self.mesh is not None:
-            pts, _ = trimesh.sample.sample_surface(self.mesh, count, seed=int(rng.integers(2**31 - 1)))
-            return np.asarray(pts, dtype=np.float64)
+            pts, face = trimesh.sample.sample_surface(self.mesh, count, seed=int(rng.integers(2**31 - 1)))
+            return np.asarray(pts, dtype=np.float64), np.asarray(self.mesh.face_normals[face], dtype=np.float64)
         replace = count > len(self.points)
         idx = rng.choice(len(self.points), size=count, replace=replace)
-        return self.points[idx]
+        return self.points[idx], None
 
     def area(self) -> float | None:
         return float(self.mesh.area) if self.mesh is not None else None

@@ -45,6 +45,7 @@ class StepLosses:
     occ: float
     dist: float
     positives: int
+    orient: float = 0.0
 
 
 class Fitter:
@@ -74,14 +75,17 @@ class Fitter:
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr * lr_factor(self.progress(), cfg.lr_decay_start, cfg.lr_final)
         uv = uniform_uv(cfg.model.charts, cfg.uv_samples, self.generator, 1, dev)
-        targets = torch.from_numpy(self.surface.sample(cfg.targets, self.rng)).float().to(dev)
-        terms = atlas_losses(model, uv, targets[None], cfg)
+        pts, nrm = self.surface.sample_with_normals(cfg.targets, self.rng)
+        targets = torch.from_numpy(pts).float().to(dev)
+        normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
+        terms = atlas_losses(model, uv, targets[None], cfg, normals=normals)
         total = terms.total
         self.optimizer.zero_grad(set_to_none=True)
         total.backward()
         self.optimizer.step()
         self.step += 1
-        return StepLosses(total.item(), terms.rec.item(), terms.occ.item(), terms.dist.item(), terms.positives)
+        return StepLosses(total.item(), terms.rec.item(), terms.occ.item(), terms.dist.item(), terms.positives,
+                          float(terms.orient.item()) if terms.orient is not None else 0.0)
 
     # -- state -----------------------------------------------------------------------------
     def state_dict(self) -> dict:

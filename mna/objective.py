@@ -25,21 +25,29 @@ class LossTerms(NamedTuple):
     occ: torch.Tensor
     dist: torch.Tensor
     positives: int
+    orient: torch.Tensor | None = None
 
 
 def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig,
-                 z: torch.Tensor | None = None) -> LossTerms:
-    """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame)."""
+                 z: torch.Tensor | None = None, normals: torch.Tensor | None = None) -> LossTerms:
+    """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame).
+
+    ``normals (B, T, 3)``: unit surface normals of the targets, for L_orient (``w_orient > 0``;
+    without normals the term is 0).
+    """
+    orient = torch.zeros((), device=uv.device)
     if cfg.ablation.atlasnet:
         rec, dist, n = _atlasnet_terms(model, uv, targets, cfg, z)
         occ = torch.zeros((), device=uv.device)
     else:
-        rec, dist, occ, n = _mna_terms(model, uv, targets, cfg, z)
+        rec, dist, occ, n, o = _mna_terms(model, uv, targets, cfg, z, normals)
+        orient = o if o is not None else orient
     w = cfg.loss
-    return LossTerms(w.w_rec * rec + w.w_occ * occ + w.w_dist * dist, rec, occ, dist, n)
+    total = w.w_rec * rec + w.w_occ * occ + w.w_dist * dist + w.w_orient * orient
+    return LossTerms(total, rec, occ, dist, n, orient)
 
 
-def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z):
+def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z, normals=None):
     K, B, N, _ = uv.shape
     T = targets.shape[1]
     with torch.no_grad():
@@ -63,7 +71,8 @@ def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg:
     pos_uv[k_of, b_of, slot] = uv[k_of, b_of, n_of]
 
     limit = cfg.dist_samples
-    want_jac = cfg.loss.w_dist > 0
+    want_orient = cfg.loss.w_orient > 0 and normals is not None
+    want_jac = cfg.loss.w_dist > 0 or want_orient
     split_jac = want_jac and 0 < limit < int(counts.max())
     out = model.chart(pos_uv, z, jacobian=want_jac and not split_jac)
     matched = out.x[k_of, b_of, slot]  # (U, 3)
@@ -81,9 +90,19 @@ def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg:
             jac, jb = out.jac[k_of, b_of, slot], b_of
         # one scale per shape (shared by its charts), averaged over the batch
         dist = torch.stack([losses.distortion_loss(jac[jb == b], cfg.loss.eps) for b in range(B)]).mean()
+    orient = None
+    if want_orient:
+        # one target per positive (any of those whose nearest sample it is: the largest index)
+        tgt = torch.full((len(uniq),), -1, dtype=torch.long, device=uv.device).scatter_reduce(
+            0, inverse, torch.arange(B * T, device=uv.device), reduce="amax")
+        tgt_n = normals.reshape(B * T, 3).to(uv.dtype)[tgt]
+        sel = keep if split_jac else torch.ones_like(group, dtype=torch.bool)
+        tgt_n, grp = tgt_n[sel], group[sel]
+        orient = torch.stack([losses.orientation_loss(jac[jb == b], tgt_n[jb == b], grp[jb == b])
+                              for b in range(B)]).mean()
     logits = model.label_logits(uv, x, z)  # x carries no gradient: L_occ never reaches phi
     occ = losses.occupancy_loss(logits.reshape(-1), labels.reshape(-1))
-    return rec, dist, occ, len(uniq)
+    return rec, dist, occ, len(uniq), orient
 
 
 def _atlasnet_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z):

@@ -17,6 +17,7 @@ from .charts import ChartGrids
 from mna.pointmetrics import POINTS, chamfer_fscore
 from .geometry import sample_surface
 from .islands import uv_islands
+from .orient import Reference, orient_pieces
 from .pack import Packing, pack_islands
 from .trim import Piece, TrimConfig, trim_charts
 from .uvmesh import Normalization, UVMesh, make_uv_mesh
@@ -31,6 +32,8 @@ class AtlasConfig:
     padding: int = 8
     """Gutter around each island, in texels at ``resolution``."""
     trim: TrimConfig = field(default_factory=TrimConfig)
+    orient: bool = True
+    """With a reference surface, reorient inside-out parts of charts (:mod:`texture.orient`)."""
     seed: int = 0
     """Seed of the surface samples used for the coverage check."""
 
@@ -103,13 +106,22 @@ def coverage_stats(charts: ChartGrids, pieces: list[Piece], reference: np.ndarra
     return out
 
 
-def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference_points: np.ndarray | None = None) -> Atlas:
-    """Trim, cut, split and pack ``charts``; ``reference_points`` (unit frame) for the coverage check."""
+def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference_points: np.ndarray | None = None,
+                reference: Reference | None = None) -> Atlas:
+    """Trim, orient, cut, split and pack ``charts``.
+
+    ``reference_points`` (unit frame) for the coverage check; ``reference`` (the input mesh
+    with normals, unit frame) to orient every island outward.
+    """
     cfg = config or AtlasConfig()
     t0 = time.perf_counter()
     trimmed = trim_charts(charts, cfg.trim)
+    pieces, orient_stats = trimmed.pieces, {}
+    if reference is not None and cfg.orient:
+        total = sum(float(p.area().sum()) for p in pieces)
+        pieces, orient_stats = orient_pieces(pieces, reference, cfg.trim.min_island_fraction * total)
     t1 = time.perf_counter()
-    xyz, uv_local, faces, chart, island = _merge(trimmed.pieces)
+    xyz, uv_local, faces, chart, island = _merge(pieces)
     packing = pack_islands(uv_local, faces, island, resolution=cfg.resolution, padding=cfg.padding)
     t2 = time.perf_counter()
     mesh = make_uv_mesh(charts.normalization.invert(xyz), faces, packing.uv, name="atlas")
@@ -119,7 +131,8 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         "islands": int(island.max()) + 1,
         "faces": int(len(faces)),
         **trimmed.stats,
-        **coverage_stats(charts, trimmed.pieces, reference_points, cfg.seed),
+        **orient_stats,
+        **coverage_stats(charts, pieces, reference_points, cfg.seed),
         "utilization": packing.utilization,
         "packer": packing.packer,
         "uv_scale": packing.scale,

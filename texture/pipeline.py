@@ -15,6 +15,7 @@ from mna.atomic import write_json
 from mna.errors import InputError
 
 from .atlas import AtlasConfig, build_atlas
+from .orient import Reference
 from .charts import load_charts
 from .export import export_textured
 from .harness import measure
@@ -131,7 +132,8 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
         source_colors(mesh_in)  # fail before the slow part when there is nothing to bake
     norm = charts.normalization
     ref = reference_points(mesh_in, points_in, norm)
-    atlas = build_atlas(charts, AtlasConfig(resolution=size, padding=int(padding)), ref)
+    surface = Reference.from_trimesh(mesh_in, norm) if mesh_in is not None else None
+    atlas = build_atlas(charts, AtlasConfig(resolution=size, padding=int(padding)), ref, surface)
     t1 = time.perf_counter()
     source = None
     if texture == "bake":

@@ -121,3 +121,13 @@ def test_fit_cli_end_to_end_with_grid(capsys, torus_file, out):
     z = np.load(out / "charts.npz")
     assert z["xyz"].shape == (3, 20, 20, 3)
     assert "fscore_mesh" in capsys.readouterr().out
+
+
+def test_config_float_written_without_dot(tmp_path):
+    """YAML 1.1 reads ``1e-3`` as a string; a float key still takes it (and a word still fails)."""
+    from mna import config as C
+
+    cfg = C.from_dict({"lr": "1e-3", "loss": {"w_orient": "2e-3"}})
+    assert cfg.lr == 0.001 and cfg.loss.w_orient == 0.002
+    with pytest.raises(C.MnaError, match="config.lr must be float"):
+        C.from_dict({"lr": "fast"})

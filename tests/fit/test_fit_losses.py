@@ -122,3 +122,72 @@ def test_batched_objective_equals_per_shape_loop(atlasnet):
         expected = sum(getattr(s, name) for s in singles) / B
         assert float(getattr(batched, name)) == pytest.approx(float(expected), rel=1e-10), name
     assert batched.positives == sum(s.positives for s in singles)
+
+
+def _plane_jacobians(n: int, angle: float = 0.0) -> torch.Tensor:
+    """``n`` copies of the Jacobian of a plane through the origin tilted by ``angle`` about x (normal (0, -sin, cos))."""
+    j = torch.tensor([[1.0, 0.0], [0.0, np.cos(angle)], [0.0, np.sin(angle)]], dtype=torch.float64)
+    return j.expand(n, 3, 2).clone()
+
+
+def test_orientation_loss_closed_forms():
+    up = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
+    jac = _plane_jacobians(8)
+    one_group = torch.zeros(8, dtype=torch.long)
+    agree = up.expand(8, 3)
+    assert float(losses.orientation_loss(jac, agree, one_group)) == 0.0
+    # either handedness of a chart is fine: all normals reversed is still consistent
+    assert float(losses.orientation_loss(jac, -agree, one_group)) == 0.0
+    # 2 of 8 reversed against a majority of 6: each contributes relu(1) = 1
+    mixed = agree.clone()
+    mixed[:2] = -up
+    assert float(losses.orientation_loss(jac, mixed, one_group)) == pytest.approx(2 / 8, abs=1e-15)
+    # a reversed normal tilted by theta contributes cos(theta); the Jacobian's length does not matter
+    theta = 0.3
+    tilted = torch.tensor([0.0, np.sin(theta), -np.cos(theta)], dtype=torch.float64)
+    normals = torch.cat([agree[:7], tilted[None]])
+    assert float(losses.orientation_loss(3.7 * jac, normals, one_group)) == pytest.approx(np.cos(theta) / 8, rel=1e-12)
+    # the majority is per group: two charts of opposite handedness are both consistent
+    groups = torch.tensor([0, 0, 0, 0, 1, 1, 1, 1])
+    two = torch.cat([agree[:4], -agree[4:]])
+    assert float(losses.orientation_loss(jac, two, groups)) == 0.0
+    two[7] = up  # one of chart 1's four normals disagrees with its majority (-up)
+    assert float(losses.orientation_loss(jac, two, groups)) == pytest.approx(1 / 8, abs=1e-15)
+
+
+def test_orientation_loss_gradcheck():
+    torch.manual_seed(3)
+    jac = torch.randn(12, 3, 2, dtype=torch.float64, requires_grad=True)
+    normals = torch.nn.functional.normalize(torch.randn(12, 3, dtype=torch.float64), dim=1)
+    groups = torch.arange(12) % 2
+    assert torch.autograd.gradcheck(lambda j: losses.orientation_loss(j, normals, groups), (jac,))
+
+
+def test_objective_orientation_term():
+    """w_orient * L_orient enters the total; it is per-shape averaged like the other terms; no normals -> 0."""
+    from mna import config as C
+    from mna.model import NeuralAtlas
+    from mna.objective import atlas_losses
+
+    torch.manual_seed(0)
+    cfg = C.tiny()
+    cfg.model.latent = 4
+    cfg.dist_samples = 8
+    cfg.loss.w_orient = 0.5
+    model = NeuralAtlas.from_config(cfg.model, cfg.ablation).double()
+    K, B, N, T = 3, 2, 50, 40
+    uv = torch.rand(K, B, N, 2, dtype=torch.float64) * 2 - 1
+    targets = torch.randn(B, T, 3, dtype=torch.float64) * 0.5
+    normals = torch.nn.functional.normalize(torch.randn(B, T, 3, dtype=torch.float64), dim=-1)
+    z = torch.randn(B, 4, dtype=torch.float64)
+    t = atlas_losses(model, uv, targets, cfg, z, normals)
+    w = cfg.loss
+    assert 0.0 < float(t.orient) < 1.0
+    assert float(t.total) == pytest.approx(float(w.w_rec * t.rec + w.w_occ * t.occ + w.w_dist * t.dist
+                                                 + w.w_orient * t.orient), rel=1e-12)
+    singles = [atlas_losses(model, uv[:, b:b + 1], targets[b:b + 1], cfg, z[b:b + 1], normals[b:b + 1])
+               for b in range(B)]
+    assert float(t.orient) == pytest.approx(float(sum(s.orient for s in singles)) / B, rel=1e-10)
+    # reversing every normal keeps every chart consistent with itself: same loss
+    assert float(atlas_losses(model, uv, targets, cfg, z, -normals).orient) == pytest.approx(float(t.orient), rel=1e-10)
+    assert float(atlas_losses(model, uv, targets, cfg, z).orient) == 0.0
