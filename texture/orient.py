@@ -51,11 +51,13 @@ class Reference:
         merged = trimesh.Trimesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces), process=True)
         return cls(normalization.apply(merged.vertices), merged.faces, merged.vertex_normals)
 
-    def normal_at(self, points: np.ndarray) -> np.ndarray:
-        """(N, 3) unit reference normal at the closest reference point of each of ``points``."""
+    def normal_at(self, points: np.ndarray, with_distance: bool = False):
+        """(N, 3) unit reference normal at the closest reference point of each of ``points``
+        (and the (N,) distances to it with ``with_distance``)."""
         proj = self.projector.project(points)
         n = (proj.bary[:, :, None] * self.normals[self.projector.faces[proj.face]]).sum(1)
-        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        return (n, proj.distance) if with_distance else n
 
 
 def face_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -73,9 +75,28 @@ def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-300)
 
 
+#: farther than this from the reference (unit-ball frame, 1 % of the diameter: the F-score
+#: threshold) a chart is
+#: not on the surface and the reference says nothing about its orientation
+NEAR = 0.02
+
+
 def orientation_field(piece: Piece, reference: Reference) -> np.ndarray:
-    """(V,) cosine between the piece's vertex normal and the reference normal there."""
-    return (vertex_normals(piece.xyz, piece.faces) * reference.normal_at(piece.xyz)).sum(1)
+    """(V,) cosine between the piece's vertex normal and the reference normal there.
+
+    Vertices farther than ``NEAR`` from the reference take the sign of the piece's
+    majority (near vertices, area-weighted), so a chart that is off the surface is never cut.
+    """
+    vn = vertex_normals(piece.xyz, piece.faces)
+    rn, dist = reference.normal_at(piece.xyz, with_distance=True)
+    g = (vn * rn).sum(1)
+    far = dist > NEAR
+    if far.any():
+        weight = np.zeros(len(g))
+        np.add.at(weight, piece.faces.ravel(), np.repeat(piece.area(), 3))
+        majority = 1.0 if float((np.sign(g) * weight)[~far].sum()) >= 0 else -1.0
+        g[far] = majority * 1e-3
+    return g
 
 
 def folded_area(piece: Piece, reference: Reference) -> float:
