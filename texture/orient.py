@@ -177,7 +177,66 @@ def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_
         if not changed:
             break
     pos, neg = (_drop_faces(p, k) if not k.all() else p for (p, _), k in zip(parts, keep))
+    pos, neg = _settle(pos, neg, reference)
     return pos, _reversed(neg), dropped
+
+
+def _face_signs(piece: Piece, reference: Reference) -> np.ndarray:
+    """(F,) +1 / -1: face normal with / against the reference; 0 off the surface or degenerate."""
+    fn = face_normals(piece.xyz, piece.faces)
+    rn, dist = reference.normal_at(piece.xyz[piece.faces].mean(1), with_distance=True)
+    return np.where(dist <= NEAR, np.sign((fn * rn).sum(1)), 0.0)
+
+
+def _settle(pos: Piece, neg: Piece, reference: Reference) -> tuple[Piece, Piece]:
+    """Move the sub-triangles on the cut whose own normal disagrees with their side.
+
+    The iso-line of the vertex-normal field crosses a fold's straddling triangles, but each
+    sub-triangle keeps its triangle's normal: half of such a triangle lands on the wrong
+    side. Sub-triangles touching the cut go to the side their normal agrees with; their cut
+    vertices are snapped onto the other side's (the two clips compute them independently,
+    equal only up to rounding), so they join that side's island.
+    """
+    if len(pos.faces) == 0 or len(neg.faces) == 0:
+        return pos, neg
+    from scipy.spatial import cKDTree
+
+    def on_cut(p: Piece, other: Piece) -> np.ndarray:
+        tree = cKDTree(other.uv)
+        d, _ = tree.query(p.uv, distance_upper_bound=1e-9)
+        return np.isfinite(d)[p.faces].sum(1) >= 2  # an edge on the cut: it joins the other side there
+
+    move_pos = on_cut(pos, neg) & (_face_signs(pos, reference) < 0)
+    move_neg = on_cut(neg, pos) & (_face_signs(neg, reference) > 0)
+    if not move_pos.any() and not move_neg.any():
+        return pos, neg
+
+    def join(dst: Piece, keep: np.ndarray, src: Piece, take: np.ndarray) -> Piece:
+        xyz, uv = src.xyz.copy(), src.uv.copy()
+        d, j = cKDTree(dst.uv).query(uv, distance_upper_bound=1e-9)
+        hit = np.isfinite(d)
+        xyz[hit], uv[hit] = dst.xyz[j[hit]], dst.uv[j[hit]]
+        both = Piece(dst.chart, np.concatenate([dst.xyz, xyz]), np.concatenate([dst.uv, uv]),
+                     np.concatenate([dst.faces[keep], src.faces[take] + len(dst.xyz)]))
+        # a moved sub-triangle that joins no island of its new side (rare: its neighbour across
+        # the cut moved too) would be an island of its own: it is a sliver, drop it
+        moved = np.arange(len(both.faces)) >= int(keep.sum())
+        island = uv_islands(both.faces, both.uv)
+        alone = np.bincount(island, weights=~moved, minlength=int(island.max()) + 1) == 0
+        return _drop_faces(both, ~alone[island])
+
+    sliver = 1e-5 * (float(pos.area().sum()) + float(neg.area().sum()))
+    return tuple(_without_specks(p, sliver) for p in (join(pos, ~move_pos, neg, move_neg),
+                                                      join(neg, ~move_neg, pos, move_pos)))
+
+
+def _without_specks(piece: Piece, min_area: float) -> Piece:
+    """Drop islands under ``min_area`` (slivers a move split off at the cut)."""
+    if len(piece.faces) == 0:
+        return piece
+    island = uv_islands(piece.faces, piece.uv)
+    small = np.bincount(island, weights=piece.area()) < min_area
+    return _drop_faces(piece, ~small[island]) if small.any() else piece
 
 
 def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
