@@ -18,7 +18,8 @@ from mna.pointmetrics import POINTS, chamfer_fscore
 from .geometry import sample_surface
 from .islands import uv_islands
 from .orient import Reference, orient_pieces
-from .pack import Packing, pack_islands
+from .clip import clip_mesh
+from .pack import Packing, pack_islands, plan_packing
 from .trim import Piece, TrimConfig, trim_charts
 from .uvmesh import Normalization, UVMesh, make_uv_mesh
 
@@ -34,6 +35,11 @@ class AtlasConfig:
     trim: TrimConfig = field(default_factory=TrimConfig)
     orient: bool = True
     """With a reference surface, reorient inside-out parts of charts (:mod:`texture.orient`)."""
+    max_islands: int = 6
+    """Cut the largest island in two when that packs tighter, if the atlas then has at most
+    this many islands (0 = never cut)."""
+    split_gain: float = 0.02
+    """Cut only when utilisation (coarse packing) rises by at least this much: a cut adds a seam."""
     seed: int = 0
     """Seed of the surface samples used for the coverage check."""
 
@@ -70,6 +76,7 @@ def _merge(pieces: list[Piece]):
     for p in pieces:
         if len(p.faces) == 0:
             continue
+        p = _welded(p)
         isl = uv_islands(p.faces, p.uv)
         xyz.append(p.xyz)
         uv.append(p.uv)
@@ -81,6 +88,89 @@ def _merge(pieces: list[Piece]):
     if not faces:
         raise ValueError("no chart has any in-domain surface left: nothing to texture")
     return tuple(np.concatenate(a) for a in (xyz, uv, faces, chart, island))
+
+
+def _uv_face_areas(p: Piece) -> np.ndarray:
+    t = p.uv[p.faces]
+    return 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+                        - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+
+
+def split_largest_island(pieces: list[Piece]) -> list[Piece]:
+    """``pieces`` with the island of largest UV area cut in two across its long axis.
+
+    The cut is the straight line through the island's UV centroid, perpendicular to the
+    principal axis of its UV area (an iso-line cut like every other border), so the two
+    halves are as compact as the island allows. The halves become separate pieces.
+    """
+    best = None  # (uv area, piece index, island id, island per face)
+    for k, p in enumerate(pieces):
+        if len(p.faces) == 0:
+            continue
+        isl = uv_islands(p.faces, p.uv)
+        area = np.bincount(isl, weights=_uv_face_areas(p))
+        i = int(np.argmax(area))
+        if best is None or area[i] > best[0]:
+            best = (float(area[i]), k, i, isl)
+    if best is None:
+        return list(pieces)
+    _, k, i, isl = best
+    p = pieces[k]
+    sel = isl == i
+    w = _uv_face_areas(p)[sel]
+    centre = p.uv[p.faces[sel]].mean(1)
+    c = (centre * w[:, None]).sum(0) / w.sum()
+    d = centre - c
+    axis = np.linalg.eigh((d * w[:, None]).T @ d)[1][:, -1]
+    field = (p.uv - c) @ axis
+    inside = Piece(p.chart, p.xyz, p.uv, p.faces[sel])
+    out = [q for j, q in enumerate(pieces) if j != k]
+    if (~sel).any():
+        out.append(Piece(p.chart, p.xyz, p.uv, p.faces[~sel]))
+    for sign in (1.0, -1.0):
+        c_ = clip_mesh(np.column_stack([inside.xyz, inside.uv]), inside.faces, sign * field)
+        if len(c_.faces):
+            out.append(Piece(p.chart, c_.attrs[:, :3], c_.attrs[:, 3:5], c_.faces))
+    return out
+
+
+def _island_count(pieces: list[Piece]) -> int:
+    return sum(int(uv_islands(p.faces, p.uv).max()) + 1 for p in pieces if len(p.faces))
+
+
+def _layout(pieces: list[Piece], cfg: AtlasConfig):
+    """(pieces, coarse packing plan, stats): the islands as they are, or with the largest cut."""
+    def plan(ps):
+        _, uv, faces, _, island = _merge(ps)
+        return plan_packing(uv, faces, island, resolution=cfg.resolution, padding=cfg.padding)
+
+    base = plan(pieces)
+    stats = {"split_islands": 0}
+    if cfg.max_islands <= 0 or base is None:
+        return pieces, base, stats
+    n = _island_count(pieces)
+    if n + 1 > cfg.max_islands:
+        return pieces, base, stats
+    cut = split_largest_island(pieces)
+    if _island_count(cut) > cfg.max_islands:
+        return pieces, base, stats
+    alt = plan(cut)
+    stats["utilization_coarse_uncut"] = base.utilization
+    if alt is not None:
+        stats["utilization_coarse_cut"] = alt.utilization
+        if alt.utilization >= base.utilization + cfg.split_gain:
+            stats["split_islands"] = 1
+            return cut, alt, stats
+    return pieces, base, stats
+
+
+def _welded(p: Piece) -> Piece:
+    """One vertex per distinct (UV, 3D) point: clipping can leave exact duplicates, which
+    :func:`uv_islands` treats as one point but xatlas (by index) as a cut, splitting the island."""
+    _, first, inverse = np.unique(np.column_stack([p.uv, p.xyz]), axis=0, return_index=True, return_inverse=True)
+    if len(first) == len(p.uv):
+        return p
+    return Piece(p.chart, p.xyz[first], p.uv[first], inverse.reshape(-1)[p.faces])
 
 
 def coverage_stats(charts: ChartGrids, pieces: list[Piece], reference: np.ndarray | None, seed: int) -> dict:
@@ -116,13 +206,15 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
     cfg = config or AtlasConfig()
     t0 = time.perf_counter()
     trimmed = trim_charts(charts, cfg.trim)
+    t_trim = time.perf_counter()
     pieces, orient_stats = trimmed.pieces, {}
     if reference is not None and cfg.orient:
         total = sum(float(p.area().sum()) for p in pieces)
         pieces, orient_stats = orient_pieces(pieces, reference, cfg.trim.min_island_fraction * total)
     t1 = time.perf_counter()
+    pieces, plan, split_stats = _layout(pieces, cfg)
     xyz, uv_local, faces, chart, island = _merge(pieces)
-    packing = pack_islands(uv_local, faces, island, resolution=cfg.resolution, padding=cfg.padding)
+    packing = pack_islands(uv_local, faces, island, resolution=cfg.resolution, padding=cfg.padding, plan=plan)
     t2 = time.perf_counter()
     mesh = make_uv_mesh(charts.normalization.invert(xyz), faces, packing.uv, name="atlas")
     stats = {
@@ -132,6 +224,7 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         "faces": int(len(faces)),
         **trimmed.stats,
         **orient_stats,
+        **split_stats,
         **coverage_stats(charts, pieces, reference_points, cfg.seed),
         "utilization": packing.utilization,
         "packer": packing.packer,
@@ -139,6 +232,6 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         "texels_per_chart_unit": packing.texels_per_unit,
         "resolution": packing.resolution,
         "padding": packing.padding,
-        "timings": {"trim": t1 - t0, "pack": t2 - t1},
+        "timings": {"trim": t_trim - t0, "orient": t1 - t_trim, "pack": t2 - t1},
     }
     return Atlas(mesh, chart, island, charts.normalization, packing, stats)

@@ -26,12 +26,14 @@ reoriented as a whole. What is left folded, and what was dropped, is reported.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .clip import clip_mesh
 from .geometry import MeshProjector
 from .islands import uv_islands
-from .trim import Piece, _drop_faces
+from .trim import Piece
 
 
 class Reference:
@@ -76,27 +78,8 @@ def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 #: farther than this from the reference (unit-ball frame, 1 % of the diameter: the F-score
-#: threshold) a chart is
-#: not on the surface and the reference says nothing about its orientation
+#: threshold) a chart is not on the surface and the reference says nothing about its orientation
 NEAR = 0.02
-
-
-def orientation_field(piece: Piece, reference: Reference) -> np.ndarray:
-    """(V,) cosine between the piece's vertex normal and the reference normal there.
-
-    Vertices farther than ``NEAR`` from the reference take the sign of the piece's
-    majority (near vertices, area-weighted), so a chart that is off the surface is never cut.
-    """
-    vn = vertex_normals(piece.xyz, piece.faces)
-    rn, dist = reference.normal_at(piece.xyz, with_distance=True)
-    g = (vn * rn).sum(1)
-    far = dist > NEAR
-    if far.any():
-        weight = np.zeros(len(g))
-        np.add.at(weight, piece.faces.ravel(), np.repeat(piece.area(), 3))
-        majority = 1.0 if float((np.sign(g) * weight)[~far].sum()) >= 0 else -1.0
-        g[far] = majority * 1e-3
-    return g
 
 
 def folded_area(piece: Piece, reference: Reference) -> float:
@@ -109,9 +92,63 @@ def folded_area(piece: Piece, reference: Reference) -> float:
     return 0.5 * float(np.linalg.norm(fn[bad], axis=1).sum())
 
 
-def _clip(piece: Piece, field: np.ndarray) -> tuple[Piece, np.ndarray]:
-    c = clip_mesh(np.column_stack([piece.xyz, piece.uv]), piece.faces, field)
-    return Piece(piece.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces), c.source_vertex
+class _Part(NamedTuple):
+    """A piece with, per vertex, the reference normal (3) and distance (1) at its closest point.
+
+    Clipping interpolates them like any attribute, so the reference is projected once per
+    piece, not again for every sub-triangle the cuts make.
+    """
+
+    piece: Piece
+    ref: np.ndarray  # (V, 4)
+
+    @classmethod
+    def of(cls, piece: Piece, reference: Reference) -> "_Part":
+        n, d = reference.normal_at(piece.xyz, with_distance=True)
+        return cls(piece, np.column_stack([n, d]))
+
+    def face_signs(self) -> np.ndarray:
+        """(F,) +1 / -1: face normal with / against the reference; 0 off the surface or degenerate."""
+        p = self.piece
+        r = self.ref[p.faces].mean(1)
+        return np.where(r[:, 3] <= NEAR, np.sign((face_normals(p.xyz, p.faces) * r[:, :3]).sum(1)), 0.0)
+
+    def folded(self) -> float:
+        return float(self.piece.area()[self.face_signs() < 0].sum()) if len(self.piece.faces) else 0.0
+
+    def clip(self, field: np.ndarray) -> tuple["_Part", np.ndarray]:
+        p = self.piece
+        c = clip_mesh(np.column_stack([p.xyz, p.uv, self.ref]), p.faces, field)
+        return _Part(Piece(p.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces), c.attrs[:, 5:9]), c.source_vertex
+
+    def keep(self, faces: np.ndarray) -> "_Part":
+        """Only the faces where ``faces`` (F,) bool is set; unused vertices removed."""
+        p = self.piece
+        used = np.unique(p.faces[faces])
+        remap = np.full(len(p.xyz), -1)
+        remap[used] = np.arange(len(used))
+        return _Part(Piece(p.chart, p.xyz[used], p.uv[used], remap[p.faces[faces]]), self.ref[used])
+
+
+def orientation_field(piece: Piece, reference: Reference) -> np.ndarray:
+    """(V,) cosine between the piece's vertex normal and the reference normal there.
+
+    Vertices farther than ``NEAR`` from the reference take the sign of the piece's
+    majority (near vertices, area-weighted), so a chart that is off the surface is never cut.
+    """
+    return _field(_Part.of(piece, reference))
+
+
+def _field(part: _Part) -> np.ndarray:
+    p = part.piece
+    g = (vertex_normals(p.xyz, p.faces) * part.ref[:, :3]).sum(1)
+    far = part.ref[:, 3] > NEAR
+    if far.any():
+        weight = np.zeros(len(g))
+        np.add.at(weight, p.faces.ravel(), np.repeat(p.area(), 3))
+        majority = 1.0 if float((np.sign(g) * weight)[~far].sum()) >= 0 else -1.0
+        g[far] = majority * 1e-3
+    return g
 
 
 def _small_components(piece: Piece, min_area: float) -> list[tuple[np.ndarray, float]]:
@@ -128,6 +165,10 @@ def _reversed(piece: Piece) -> Piece:
     return Piece(piece.chart, piece.xyz, piece.uv * np.array([-1.0, 1.0]), piece.faces[:, [0, 2, 1]])
 
 
+def _empty(chart: int) -> Piece:
+    return Piece(chart, np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3), np.int64))
+
+
 def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_budget: float = 0.0,
                       passes: int = 3) -> tuple[Piece, Piece, float]:
     """(outward part, inward part reoriented outward, dropped 3D area) of ``piece``.
@@ -136,10 +177,17 @@ def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_
     smallest first, while their total stays within ``drop_budget``; the others are kept
     with their surroundings. See the module docstring.
     """
-    empty = Piece(piece.chart, np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3), np.int64))
+    out, back, dropped, _ = _split(_Part.of(piece, reference), min_area, drop_budget, passes)
+    return out, back, dropped
+
+
+def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
+    """(outward piece, reoriented piece, dropped area, folded area before) of one part."""
+    piece = whole.piece
     if len(piece.faces) == 0:
-        return piece, empty, 0.0
-    g = orientation_field(piece, reference)
+        return piece, _empty(piece.chart), 0.0, 0.0
+    before = whole.folded()
+    g = _field(whole)
     magnitude = np.maximum(np.abs(g), 1e-6)
     # area of the island of the uncut piece each vertex lies in: a small component that is a
     # whole island (all one sign) is not a fragment of the cut and is reoriented as a whole
@@ -152,18 +200,18 @@ def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_
         sign = np.where(force != 0, force, np.sign(g))
         field = sign * magnitude
         if (field > 0).all():
-            return piece, empty, 0.0
+            return piece, _empty(piece.chart), 0.0, before
         if (field < 0).all():
-            return empty, _reversed(piece), 0.0
-        parts = [_clip(piece, field), _clip(piece, -field)]
+            return _empty(piece.chart), _reversed(piece), 0.0, before
+        parts = [whole.clip(field), whole.clip(-field)]
         fragments = []  # (area, part, faces, source vertices, sign to force)
         for i, ((part, src), s) in enumerate(zip(parts, (-1.0, 1.0))):
-            for faces, area in _small_components(part, min_area):
-                verts = src[np.unique(part.faces[faces])]
+            for faces, area in _small_components(part.piece, min_area):
+                verts = src[np.unique(part.piece.faces[faces])]
                 verts = verts[verts >= 0]
                 if len(verts) and vertex_island_area[verts].max() > area * (1 + 1e-6):
                     fragments.append((area, i, faces, verts, s))
-        keep = [np.ones(len(p.faces), bool) for p, _ in parts]
+        keep = [np.ones(len(p.piece.faces), bool) for p, _ in parts]
         dropped, changed = 0.0, False
         for area, i, faces, verts, s in sorted(fragments, key=lambda f: (f[0], f[1], int(f[2][0]))):
             if dropped + area <= drop_budget:
@@ -176,91 +224,95 @@ def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_
                 changed = True
         if not changed:
             break
-    pos, neg = (_drop_faces(p, k) if not k.all() else p for (p, _), k in zip(parts, keep))
-    pos, neg = _settle(pos, neg, reference)
-    return pos, _reversed(neg), dropped
+    pos, neg = (p.keep(k) for (p, _), k in zip(parts, keep))
+    pos, neg = _settle(pos, neg)
+    return pos.piece, _reversed(neg.piece), dropped, before
 
 
-def _face_signs(piece: Piece, reference: Reference) -> np.ndarray:
-    """(F,) +1 / -1: face normal with / against the reference; 0 off the surface or degenerate."""
-    fn = face_normals(piece.xyz, piece.faces)
-    rn, dist = reference.normal_at(piece.xyz[piece.faces].mean(1), with_distance=True)
-    return np.where(dist <= NEAR, np.sign((fn * rn).sum(1)), 0.0)
-
-
-def _settle(pos: Piece, neg: Piece, reference: Reference) -> tuple[Piece, Piece]:
+def _settle(pos: _Part, neg: _Part) -> tuple[_Part, _Part]:
     """Move the sub-triangles on the cut whose own normal disagrees with their side.
 
     The iso-line of the vertex-normal field crosses a fold's straddling triangles, but each
     sub-triangle keeps its triangle's normal: half of such a triangle lands on the wrong
-    side. Sub-triangles touching the cut go to the side their normal agrees with; their cut
-    vertices are snapped onto the other side's (the two clips compute them independently,
+    side. Sub-triangles with an edge on the cut go to the side their normal agrees with;
+    their cut vertices become the other side's (the two clips compute them independently,
     equal only up to rounding), so they join that side's island.
     """
-    if len(pos.faces) == 0 or len(neg.faces) == 0:
+    if len(pos.piece.faces) == 0 or len(neg.piece.faces) == 0:
         return pos, neg
     from scipy.spatial import cKDTree
 
     def on_cut(p: Piece, other: Piece) -> np.ndarray:
-        tree = cKDTree(other.uv)
-        d, _ = tree.query(p.uv, distance_upper_bound=1e-9)
+        d, _ = cKDTree(other.uv).query(p.uv, distance_upper_bound=1e-9)
         return np.isfinite(d)[p.faces].sum(1) >= 2  # an edge on the cut: it joins the other side there
 
-    move_pos = on_cut(pos, neg) & (_face_signs(pos, reference) < 0)
-    move_neg = on_cut(neg, pos) & (_face_signs(neg, reference) > 0)
+    move_pos = on_cut(pos.piece, neg.piece) & (pos.face_signs() < 0)
+    move_neg = on_cut(neg.piece, pos.piece) & (neg.face_signs() > 0)
     if not move_pos.any() and not move_neg.any():
         return pos, neg
 
-    def join(dst: Piece, keep: np.ndarray, src: Piece, take: np.ndarray) -> Piece:
-        xyz, uv = src.xyz.copy(), src.uv.copy()
-        d, j = cKDTree(dst.uv).query(uv, distance_upper_bound=1e-9)
-        hit = np.isfinite(d)
-        xyz[hit], uv[hit] = dst.xyz[j[hit]], dst.uv[j[hit]]
-        both = Piece(dst.chart, np.concatenate([dst.xyz, xyz]), np.concatenate([dst.uv, uv]),
-                     np.concatenate([dst.faces[keep], src.faces[take] + len(dst.xyz)]))
-        # a moved sub-triangle that joins no island of its new side (rare: its neighbour across
-        # the cut moved too) would be an island of its own: it is a sliver, drop it
-        moved = np.arange(len(both.faces)) >= int(keep.sum())
-        island = uv_islands(both.faces, both.uv)
-        alone = np.bincount(island, weights=~moved, minlength=int(island.max()) + 1) == 0
-        return _drop_faces(both, ~alone[island])
+    def join(dst: _Part, keep: np.ndarray, src: _Part, take: np.ndarray) -> _Part:
+        d, s = dst.piece, src.piece
+        # the moved faces' cut vertices become the other side's (same index, so every consumer,
+        # xatlas included, sees one connected island); their other vertices are appended
+        dist, j = cKDTree(d.uv).query(s.uv, distance_upper_bound=1e-9)
+        hit = np.isfinite(dist)
+        index = np.where(hit, j, len(d.xyz) + np.cumsum(~hit) - 1)
+        n_keep = int(keep.sum())
+        faces = np.concatenate([d.faces[keep], index[s.faces[take]]])
+        both = _Part(Piece(d.chart, np.concatenate([d.xyz, s.xyz[~hit]]), np.concatenate([d.uv, s.uv[~hit]]), faces),
+                     np.concatenate([dst.ref, src.ref[~hit]]))
+        # a moved sub-triangle must share an edge with a face that stayed (otherwise it would
+        # hang on by a corner, or be an island of its own): if not, it is a sliver, drop it
+        moved = np.arange(len(faces)) >= n_keep
+        edges = np.sort(faces[:, [[0, 1], [1, 2], [2, 0]]], axis=2).reshape(-1, 2)
+        key = edges[:, 0] * (len(both.piece.xyz) + 1) + edges[:, 1]
+        stayed = np.isin(key, key[: 3 * n_keep]).reshape(-1, 3).any(1)
+        return both.keep(~moved | stayed)
 
-    sliver = 1e-5 * (float(pos.area().sum()) + float(neg.area().sum()))
+    sliver = 1e-5 * (float(pos.piece.area().sum()) + float(neg.piece.area().sum()))
     return tuple(_without_specks(p, sliver) for p in (join(pos, ~move_pos, neg, move_neg),
                                                       join(neg, ~move_neg, pos, move_pos)))
 
 
-def _without_specks(piece: Piece, min_area: float) -> Piece:
+def _without_specks(part: _Part, min_area: float) -> _Part:
     """Drop islands under ``min_area`` (slivers a move split off at the cut)."""
-    if len(piece.faces) == 0:
-        return piece
-    island = uv_islands(piece.faces, piece.uv)
-    small = np.bincount(island, weights=piece.area()) < min_area
-    return _drop_faces(piece, ~small[island]) if small.any() else piece
+    p = part.piece
+    if len(p.faces) == 0:
+        return part
+    island = uv_islands(p.faces, p.uv)
+    small = np.bincount(island, weights=p.area()) < min_area
+    return part.keep(~small[island]) if small.any() else part
 
 
 def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
                   max_dropped_fraction: float = 2.5e-3) -> tuple[list[Piece], dict]:
     """Every piece split by :func:`split_orientation`; stats in percent of the total area.
 
-    Fragments may be dropped up to ``max_dropped_fraction`` of each piece's area.
+    Fragments may be dropped up to ``max_dropped_fraction`` of each piece's area. The
+    folded areas in the stats use the reference normal interpolated from the vertices
+    (the harness measures the final mesh exactly).
 
     The result lists the outward parts first (chart order), then the reoriented ones, and
     drops empty parts; a chart may now own two pieces.
     """
     total = max(sum(float(p.area().sum()) for p in pieces), 1e-300)
-    before = sum(folded_area(p, reference) for p in pieces)
-    outward, inward, dropped = [], [], 0.0
+    outward, inward, dropped, before = [], [], 0.0, 0.0
     for p in pieces:
-        a, b, d = split_orientation(p, reference, min_area, max_dropped_fraction * float(p.area().sum()))
+        a, b, d, f = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()))
         outward.append(a)
         inward.append(b)
         dropped += d
+        before += f
     out = [p for p in outward + inward if len(p.faces)]
+    after = 0.0
+    for p in out:  # faces disagreeing with the reference after the reorientation
+        part = _Part.of(p, reference)
+        after += part.folded()
     stats = {
         "folded_percent_before_orient": 100.0 * before / total,
         "reoriented_percent": 100.0 * sum(float(p.area().sum()) for p in inward) / total,
-        "folded_percent": 100.0 * sum(folded_area(p, reference) for p in out) / total,
+        "folded_percent": 100.0 * after / total,
         "orient_dropped_percent": 100.0 * dropped / total,
     }
     return out, stats

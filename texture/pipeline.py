@@ -108,7 +108,7 @@ def make_texture(kind: str, mesh_unit: UVMesh, size: int, padding: int, source=N
 
 
 def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str = 2048, padding: int = 8,
-               square_size: float | None = None) -> dict:
+               square_size: float | None = None, max_islands: int = AtlasConfig.max_islands) -> dict:
     """Charts of ``RUN/charts.npz`` -> ``RUN/mesh.obj``, ``mesh.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``atlas.json``.
 
     Returns the ``atlas.json`` content: atlas stats (trim, coverage, packing), harness
@@ -133,7 +133,10 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     norm = charts.normalization
     ref = reference_points(mesh_in, points_in, norm)
     surface = Reference.from_trimesh(mesh_in, norm) if mesh_in is not None else None
-    atlas = build_atlas(charts, AtlasConfig(resolution=size, padding=int(padding)), ref, surface)
+    if int(max_islands) < 0:
+        raise InputError(f"--max-islands must be 0 (never cut) or a positive integer, got {max_islands}")
+    atlas = build_atlas(charts, AtlasConfig(resolution=size, padding=int(padding), max_islands=int(max_islands)),
+                        ref, surface)
     t1 = time.perf_counter()
     source = None
     if texture == "bake":

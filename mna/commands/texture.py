@@ -20,6 +20,9 @@ def register(subparsers) -> None:
     e.add_argument("--padding", default="8", help="gutter around each island in texels (default 8)")
     e.add_argument("--square-size", type=float, default=None,
                    help="checker square size in the unit-ball frame (default 0.1)")
+    e.add_argument("--max-islands", type=int, default=6,
+                   help="cut the largest island in two when that packs tighter and the atlas keeps at most "
+                        "this many islands (default 6; 0 = never cut)")
     e.set_defaults(func=run_export)
 
     u = subparsers.add_parser("uv", help="UV-map any mesh with xatlas and write a textured OBJ/GLB + metrics",
@@ -77,7 +80,8 @@ def run_export(args: argparse.Namespace) -> int:
 
     size = check_size(args.size)
     padding = _int_arg(args.padding, "--padding", 0)
-    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size)
+    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size,
+                   max_islands=args.max_islands)
     a, m = r["atlas"], r["uv_metrics"]
     print(f"atlas: {a['islands']} islands from {a['charts_used']} charts, seam length {m['seam_length']:.2f}, "
           f"distortion_metric {m['distortion_metric']:.3f}, utilization {a['utilization']:.2f}, "

@@ -102,11 +102,18 @@ def test_pack_keeps_one_scale_no_overlap_inside_unit_square():
     assert 0.2 < pk.utilization < 1.0
 
 
-def test_build_atlas_on_synthetic_sphere(sphere_run):
+@pytest.mark.parametrize("max_islands", [0, 6])
+def test_build_atlas_on_synthetic_sphere(sphere_run, max_islands):
     charts = load_charts(sphere_run / "charts.npz")
-    atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2))
+    atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2, max_islands=max_islands))
     s = atlas.stats
-    assert s["islands"] == 2 and s["charts_used"] == 2
+    if max_islands == 0:  # the two caps, trimmed at the equator, one island each
+        assert s["islands"] == 2 and s["charts_used"] == 2 and s["split_islands"] == 0
+    else:
+        # two discs pack into at most 2 pi / 16 = 0.39 of a square; one cut in half packs tighter
+        assert s["islands"] == 3 and s["charts_used"] == 2 and s["split_islands"] == 1
+        assert s["utilization_coarse_cut"] >= s["utilization_coarse_uncut"] + 0.02
+        assert s["utilization"] > 2 * np.pi / 16
     assert s["doubly_covered_percent"] <= 1.0
     assert s["fscore_drop"] <= 0.5
     assert atlas.mesh.uv.min() >= 0 and atlas.mesh.uv.max() <= 1

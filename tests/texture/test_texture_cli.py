@@ -25,23 +25,28 @@ def _files(folder: Path) -> set[str]:
     return {p.name for p in folder.iterdir()}
 
 
-def test_export_writes_textured_assets(fresh_sphere_run, capsys):
+@pytest.mark.parametrize("max_islands", [0, 6])
+def test_export_writes_textured_assets(fresh_sphere_run, capsys, max_islands):
     run = fresh_sphere_run
     before = _files(run)
-    assert main(["export", str(run), "--size", "256", "--padding", "2"]) == 0
+    assert main(["export", str(run), "--size", "256", "--padding", "2", "--max-islands", str(max_islands)]) == 0
     assert _files(run) - before == {"mesh.obj", "mesh.mtl", "mesh_texture.png", "mesh.glb", "atlas.json"}
     info = json.loads((run / "atlas.json").read_text())
     a, m = info["atlas"], info["uv_metrics"]
-    assert a["islands"] == 2 and m["charts"] == 2
+    # two caps trimmed at the equator; by default one of them is cut in half to pack tighter,
+    # along a straight UV line through its pole: half a great circle more seam
+    islands = 2 if max_islands == 0 else 3
+    assert a["islands"] == islands and m["charts"] == islands
     assert a["doubly_covered_percent"] <= 1.0 and a["fscore_drop"] <= 0.5
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
     assert m["distortion_metric"] < 0.5
-    # seam = the equator (length 2 pi on the unit sphere) / sqrt(4 pi)
-    assert m["seam_length"] == pytest.approx(2 * np.pi / np.sqrt(4 * np.pi), rel=0.03)
+    # seam = the equator (length 2 pi on the unit sphere) [+ the half great circle pi] / sqrt(4 pi)
+    seam = 2 * np.pi + (np.pi if islands == 3 else 0.0)
+    assert m["seam_length"] == pytest.approx(seam / np.sqrt(4 * np.pi), rel=0.03)
     back = read_back(run / "mesh.obj")
     assert back.uv.min() >= 0 and back.uv.max() <= 1
     assert np.linalg.norm(back.vertices - CENTER, axis=1).mean() == pytest.approx(2.0, rel=1e-3)  # input frame
-    assert "atlas: 2 islands" in capsys.readouterr().out
+    assert f"atlas: {islands} islands" in capsys.readouterr().out
 
 
 def test_export_bake_reproduces_input_colours(fresh_sphere_run):
@@ -87,7 +92,7 @@ def test_compare_tabulates_every_method(tmp_path, monkeypatch):
         assert {"mesh.obj", "mesh.glb", "mesh_texture.png", "metrics.json"} <= _files(run / sub)
     ours, xa = res["methods"][0], res["methods"][1]
     assert ours["faces"] == xa["faces"]  # the same reconstructed mesh
-    assert ours["charts"] == 2 and xa["charts"] >= 2
+    assert ours["charts"] == 3 and xa["charts"] >= 2  # the two caps, one cut in half to pack tighter
     assert ours["seam_length"] <= xa["seam_length"] + 1e-9  # xatlas cannot join our separate islands
     md = (run / "compare.md").read_text()
     assert "| mna | reconstruction |" in md and "xatlas sweep" in md
@@ -187,3 +192,10 @@ def test_uv_missing_and_bad_options(tmp_path, capsys):
     code = main(["uv", str(src), "-o", str(tmp_path / "o"), "--size", "0"])
     assert "positive integer" in _one_error_line(capsys, code)
     assert not (tmp_path / "o").exists()
+
+
+def test_export_bad_max_islands(fresh_sphere_run, capsys):
+    before = _files(fresh_sphere_run)
+    code = main(["export", str(fresh_sphere_run), "--max-islands", "-1"])
+    assert "--max-islands" in _one_error_line(capsys, code)
+    assert _files(fresh_sphere_run) == before
