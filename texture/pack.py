@@ -259,15 +259,19 @@ class Plan:
     texels_per_unit: float  # at the full resolution
     options: dict
     attempts: int
+    uv: np.ndarray | None = None  # (V, 2) the coarse placement in [0,1]^2 (same vertex order)
 
 
 def plan_packing(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resolution: int = 2048,
-                 padding: int = 8, max_attempts: int = 16) -> Plan | None:
-    """Search every ``PACK_CANDIDATES`` at ``resolution / COARSE`` (gutter scaled alike); best one.
+                 padding: int = 8, max_attempts: int = 16, candidates: tuple | None = None,
+                 start: float | None = None) -> Plan | None:
+    """Search ``candidates`` (default ``PACK_CANDIDATES``) at ``resolution / COARSE`` (gutter
+    scaled alike); the best one.
 
     xatlas's time is mostly rasterising islands at the atlas resolution, so comparing
-    candidates (or island layouts) at a quarter of it costs about a third. None if xatlas
-    never gave a valid placement.
+    candidates (or island layouts) at a quarter of it costs about a third. ``start``
+    (texels per unit at full resolution, e.g. another layout's plan) replaces the first
+    guess and the search steps by ``FINE_SHRINK``. None if xatlas never gave a valid placement.
     """
     factor = COARSE if resolution >= COARSE * 128 else 1
     res, pad = resolution // factor, max(1, int(round(padding / factor)))
@@ -275,15 +279,16 @@ def plan_packing(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     if isl.area <= 0:
         return None
     best, attempts = None, 0
-    for opts in PACK_CANDIDATES:
-        found = _search(isl, res, pad, opts, max_attempts)
+    for opts in (PACK_CANDIDATES if candidates is None else candidates):
+        found = (_search(isl, res, pad, opts, max_attempts) if start is None
+                 else _search(isl, res, pad, opts, max_attempts, start * res / resolution, FINE_SHRINK))
         if found is None:
             continue
         tpu, px, n = found
         attempts += n
         util = verify_packing(px / res, isl.faces, isl.island, res)[1]
         if best is None or util > best.utilization:
-            best = Plan(util, tpu * resolution / res, dict(opts), 0)
+            best = Plan(util, tpu * resolution / res, dict(opts), 0, px / res)
     if best is not None:
         best.attempts = attempts
     return best
@@ -312,7 +317,15 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
                                     max_attempts=max_attempts)
         if plan is not None:
             attempts += plan.attempts
-            searches = [(plan.options, plan.texels_per_unit, FINE_SHRINK)]
+            # the coarse placement, scaled up, is the packing: its gutters scale with it, so
+            # it only has to pass the overlap test at full resolution (a full-resolution
+            # search from the coarse scale found less: xatlas's validity is not monotone)
+            if plan.uv is not None and _inside(isl, plan.uv * resolution, resolution):
+                overlap, util = verify_packing(plan.uv, isl.faces, isl.island, resolution)
+                if overlap == 0:
+                    best = (util, plan.texels_per_unit, plan.uv * resolution)
+            if best is None:
+                searches = [(plan.options, plan.texels_per_unit, FINE_SHRINK)]
     for opts, start, shrink in searches:
         found = _search(isl, resolution, padding, opts, max_attempts, start, shrink)
         if found is None:
