@@ -20,6 +20,11 @@ is set so its larger side matches ``resolution``, then it is lowered by ``SHRINK
 placement is valid and bisected between the largest valid and smallest invalid scale.
 If xatlas never gives a valid placement (e.g. an island it always splits), a shelf packer
 of padded bounding boxes (:func:`shelf_pack`) places the islands instead: any input packs.
+
+Speed: the search runs at ``resolution / COARSE`` with the gutter scaled alike
+(:func:`plan_packing`, every ``PACK_CANDIDATES``), and the best placement scaled up is the
+packing once it passes the overlap test at full resolution; only if it does not, a search
+at full resolution follows.
 """
 from __future__ import annotations
 
