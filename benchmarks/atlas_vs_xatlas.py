@@ -104,7 +104,7 @@ def section(results: list[dict], args) -> str:
              f"{args.time_budget:g} s budget; `mna extract --grid {args.grid}`; texture {args.size}², padding 8. "
              "One harness (`texture.harness.measure`, unit-ball frame, input mesh as reference) for every row. "
              "`mna` = our packed atlas; `xatlas` = xatlas (defaults, unit-ball frame) on the *same* reconstructed "
-             "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + pack, xatlas = its "
+             "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + orient + pack, xatlas = its "
              "`generate`; total: ours = export (atlas + texture + write), plus fit and extract for the run.", "",
              f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
              f"load average {os.getloadavg()[0]:.1f} at the end.", "", head, "|" + "---|" * 14]
@@ -119,7 +119,13 @@ def section(results: list[dict], args) -> str:
         a = exp["atlas"]
         lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts | | | | | | | | | "
                      f"| doubly covered {a['doubly_covered_percent']:.2f} % (before {a['doubly_covered_percent_before']:.1f} %),"
-                     f" F-score drop {a.get('fscore_drop', float('nan')):.2f}; fit: {res['fit_steps']} steps, fscore_mesh "
+                     f" F-score drop {a.get('fscore_drop', float('nan')):.2f}; inside-out before orient "
+                     f"{a.get('folded_percent_before_orient', float('nan')):.2f} %, reoriented "
+                     f"{a.get('reoriented_percent', float('nan')):.2f} %, dropped {a.get('orient_dropped_percent', float('nan')):.3f} %; "
+                     f"packing cut: {'yes' if a.get('split_islands') else 'no'} (coarse utilisation "
+                     f"{a.get('utilization_coarse_uncut', float('nan')):.2f} uncut, cuts tried "
+                     f"{', '.join(f'{u:.2f}' for u in a.get('utilization_coarse_cuts', [])) or 'none'}); "
+                     f"fit: {res['fit_steps']} steps, fscore_mesh "
                      f"{res['fscore_mesh'] if res['fscore_mesh'] is not None else float('nan'):.1f}, distortion_metric "
                      f"{res['fit_distortion_metric']:.3f} (harness on charts.npz: {res['harness_on_charts']:.3f}) |")
     lines += ["", "Per-run details (sweep, per-file timings): RUN/compare.md and RUN/atlas.json of each run.", ""]
