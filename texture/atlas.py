@@ -19,7 +19,7 @@ from .geometry import sample_surface
 from .islands import uv_islands
 from .orient import Reference, orient_pieces
 from .clip import clip_mesh
-from .pack import Packing, pack_islands, plan_packing
+from .pack import Packing, pack_islands, plan_layouts
 from .trim import Piece, TrimConfig, trim_charts
 from .uvmesh import Normalization, UVMesh, make_uv_mesh
 
@@ -166,18 +166,40 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
     second largest gained 0.13), so the cuts of the ``CUT_ISLANDS`` largest islands are
     each packed at the coarse resolution and the best is kept if it gains ``split_gain``.
     """
-    def plan(ps):
-        # each layout gets a fresh search: xatlas's validity is not monotone in the scale, so a
-        # search from the uncut layout's scale stops at the first failure (0.62 where a fresh
-        # guess found 0.69 on a bunny fit), and both option sets (one alone lost the gain on
-        # a sphere's two caps)
+    def arrays(ps):
         _, uv, faces, _, island = _merge(ps)
-        return plan_packing(uv, faces, island, resolution=cfg.resolution, padding=cfg.padding)
+        return uv, faces, island
 
-    base = plan(pieces)
+    layouts = [pieces]
     stats = {"split_islands": 0}
-    if cfg.max_islands <= 0 or base is None or _island_count(pieces) + 1 > cfg.max_islands:
+    if cfg.max_islands > 0 and _island_count(pieces) + 1 <= cfg.max_islands:
+        ranked = []  # (UV area, piece, island)
+        for k, p in enumerate(pieces):
+            if len(p.faces):
+                area = np.bincount(uv_islands(p.faces, p.uv), weights=_uv_face_areas(p))
+                ranked += [(float(a), k, i) for i, a in enumerate(area)]
+        ranked.sort(key=lambda t: (-t[0], t[1], t[2]))
+        for _, k, i in ranked[:CUT_ISLANDS]:
+            for long_axis in CUT_AXES:
+                cut = cut_island(pieces, k, i, long_axis)
+                if _island_count(cut) <= cfg.max_islands:
+                    layouts.append(cut)
+    # each layout gets a fresh search with both option sets (xatlas's validity is not
+    # monotone in the scale, so a search from the uncut layout's scale stops at the first
+    # failure: 0.62 where a fresh guess found 0.69 on a bunny fit; one option set alone lost
+    # the gain on a sphere's two caps), all in parallel
+    plans = plan_layouts([arrays(ps) for ps in layouts], resolution=cfg.resolution, padding=cfg.padding)
+    base = plans[0]
+    if base is None or len(layouts) == 1:
         return pieces, base, stats
+    stats["utilization_coarse_uncut"] = base.utilization
+    stats["utilization_coarse_cuts"] = [p.utilization for p in plans[1:] if p is not None]
+    best = max(range(1, len(plans)), key=lambda i: plans[i].utilization if plans[i] is not None else -1.0)
+    if plans[best] is not None and plans[best].utilization >= base.utilization + cfg.split_gain:
+        stats["split_islands"] = 1
+        stats["utilization_coarse_cut"] = plans[best].utilization
+        return layouts[best], plans[best], stats
+    return pieces, base, stats
     ranked = []  # (UV area, piece, island)
     for k, p in enumerate(pieces):
         if len(p.faces):

@@ -114,7 +114,12 @@ class _Part(NamedTuple):
         return np.where(r[:, 3] <= NEAR, np.sign((face_normals(p.xyz, p.faces) * r[:, :3]).sum(1)), 0.0)
 
     def folded(self) -> float:
+        """Area facing against the reference."""
         return float(self.piece.area()[self.face_signs() < 0].sum()) if len(self.piece.faces) else 0.0
+
+    def unfolded(self) -> float:
+        """Area facing with the reference: what is folded once the part is reversed."""
+        return float(self.piece.area()[self.face_signs() > 0].sum()) if len(self.piece.faces) else 0.0
 
     def clip(self, field: np.ndarray) -> tuple["_Part", np.ndarray]:
         p = self.piece
@@ -177,15 +182,15 @@ def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_
     smallest first, while their total stays within ``drop_budget``; the others are kept
     with their surroundings. See the module docstring.
     """
-    out, back, dropped, _ = _split(_Part.of(piece, reference), min_area, drop_budget, passes)
+    out, back, dropped, _, _ = _split(_Part.of(piece, reference), min_area, drop_budget, passes)
     return out, back, dropped
 
 
 def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
-    """(outward piece, reoriented piece, dropped area, folded area before) of one part."""
+    """(outward piece, reoriented piece, dropped area, folded area before, after) of one part."""
     piece = whole.piece
     if len(piece.faces) == 0:
-        return piece, _empty(piece.chart), 0.0, 0.0
+        return piece, _empty(piece.chart), 0.0, 0.0, 0.0
     before = whole.folded()
     g = _field(whole)
     magnitude = np.maximum(np.abs(g), 1e-6)
@@ -200,9 +205,9 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
         sign = np.where(force != 0, force, np.sign(g))
         field = sign * magnitude
         if (field > 0).all():
-            return piece, _empty(piece.chart), 0.0, before
+            return piece, _empty(piece.chart), 0.0, before, before
         if (field < 0).all():
-            return _empty(piece.chart), _reversed(piece), 0.0, before
+            return _empty(piece.chart), _reversed(piece), 0.0, before, whole.unfolded()
         parts = [whole.clip(field), whole.clip(-field)]
         fragments = []  # (area, part, faces, source vertices, sign to force)
         for i, ((part, src), s) in enumerate(zip(parts, (-1.0, 1.0))):
@@ -226,7 +231,7 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
             break
     pos, neg = (p.keep(k) for (p, _), k in zip(parts, keep))
     pos, neg = _settle(pos, neg)
-    return pos.piece, _reversed(neg.piece), dropped, before
+    return pos.piece, _reversed(neg.piece), dropped, before, pos.folded() + neg.unfolded()
 
 
 def _settle(pos: _Part, neg: _Part) -> tuple[_Part, _Part]:
@@ -297,18 +302,15 @@ def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
     drops empty parts; a chart may now own two pieces.
     """
     total = max(sum(float(p.area().sum()) for p in pieces), 1e-300)
-    outward, inward, dropped, before = [], [], 0.0, 0.0
+    outward, inward, dropped, before, after = [], [], 0.0, 0.0, 0.0
     for p in pieces:
-        a, b, d, f = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()))
+        a, b, d, f, g = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()))
         outward.append(a)
         inward.append(b)
         dropped += d
         before += f
+        after += g
     out = [p for p in outward + inward if len(p.faces)]
-    after = 0.0
-    for p in out:  # faces disagreeing with the reference after the reorientation
-        part = _Part.of(p, reference)
-        after += part.folded()
     stats = {
         "folded_percent_before_orient": 100.0 * before / total,
         "reoriented_percent": 100.0 * sum(float(p.area().sum()) for p in inward) / total,

@@ -28,6 +28,7 @@ at full resolution follows.
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 
@@ -50,6 +51,8 @@ PACK_CANDIDATES = ({}, {"rotate_charts": False})
 #: candidates are compared at ``resolution / COARSE``; the full-resolution search then starts
 #: from the coarse scale and steps by ``FINE_SHRINK``
 COARSE, FINE_SHRINK = 4, 0.985
+#: the coarse search stops at 1 %: the plan only has to rank layouts, and each step is an xatlas call
+COARSE_BISECT_TOL = 0.01
 
 
 @dataclass
@@ -226,7 +229,7 @@ def _attempt(isl: _Islands, resolution, padding, tpu, options):
 
 
 def _search(isl: _Islands, resolution, padding, options, max_attempts, tpu: float | None = None,
-            shrink: float = SHRINK):
+            shrink: float = SHRINK, tol: float = BISECT_TOL):
     """(tpu, texel positions, xatlas calls) of the largest valid xatlas placement found, or None.
 
     Without a starting ``tpu`` the first guess comes from a pack into an unbounded atlas.
@@ -239,7 +242,7 @@ def _search(isl: _Islands, resolution, padding, options, max_attempts, tpu: floa
         attempts = 1
     good = bad = None  # (tpu, texel positions) of the largest valid / tpu of the smallest invalid
     while attempts < max_attempts:
-        if good is not None and bad is not None and bad / good[0] - 1 < BISECT_TOL:
+        if good is not None and bad is not None and bad / good[0] - 1 < tol:
             break
         attempts += 1
         px = _attempt(isl, resolution, padding, tpu, options)
@@ -267,36 +270,76 @@ class Plan:
     uv: np.ndarray | None = None  # (V, 2) the coarse placement in [0,1]^2 (same vertex order)
 
 
-def plan_packing(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resolution: int = 2048,
-                 padding: int = 8, max_attempts: int = 16, candidates: tuple | None = None,
-                 start: float | None = None) -> Plan | None:
-    """Search ``candidates`` (default ``PACK_CANDIDATES``) at ``resolution / COARSE`` (gutter
-    scaled alike); the best one.
-
-    xatlas's time is mostly rasterising islands at the atlas resolution, so comparing
-    candidates (or island layouts) at a quarter of it costs about a third. ``start``
-    (texels per unit at full resolution, e.g. another layout's plan) replaces the first
-    guess and the search steps by ``FINE_SHRINK``. None if xatlas never gave a valid placement.
-    """
+def _coarse(resolution: int, padding: int) -> tuple[int, int]:
     factor = COARSE if resolution >= COARSE * 128 else 1
-    res, pad = resolution // factor, max(1, int(round(padding / factor)))
+    return resolution // factor, max(1, int(round(padding / factor)))
+
+
+def _coarse_search(job):
+    """One candidate of one layout at the coarse resolution: (util, tpu, placement, calls) or None."""
+    uv, faces, island, resolution, padding, opts, max_attempts = job
+    res, pad = _coarse(resolution, padding)
     isl = _Islands(np.asarray(uv, np.float64), np.asarray(faces, np.int64), np.asarray(island, np.int64))
     if isl.area <= 0:
         return None
-    best, attempts = None, 0
-    for opts in (PACK_CANDIDATES if candidates is None else candidates):
-        found = (_search(isl, res, pad, opts, max_attempts) if start is None
-                 else _search(isl, res, pad, opts, max_attempts, start * res / resolution, FINE_SHRINK))
-        if found is None:
-            continue
-        tpu, px, n = found
-        attempts += n
-        util = verify_packing(px / res, isl.faces, isl.island, res)[1]
-        if best is None or util > best.utilization:
-            best = Plan(util, tpu * resolution / res, dict(opts), 0, px / res)
-    if best is not None:
-        best.attempts = attempts
-    return best
+    found = _search(isl, res, pad, opts, max_attempts, tol=COARSE_BISECT_TOL)
+    if found is None:
+        return None
+    tpu, px, n = found
+    util = verify_packing(px / res, isl.faces, isl.island, res)[1]
+    return util, tpu * resolution / res, px / res, n
+
+
+def plan_layouts(layouts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *, resolution: int = 2048,
+                 padding: int = 8, max_attempts: int = 16, workers: int | None = None) -> list[Plan | None]:
+    """:func:`plan_packing` of several island layouts ``(uv, faces, island)``, searches in parallel.
+
+    Every layout x ``PACK_CANDIDATES`` search is independent and xatlas holds the GIL, so
+    they run in up to ``workers`` processes (default: the CPU count, at most 4); the result
+    is the same as one after the other.
+    """
+    jobs = [(uv, faces, island, resolution, padding, opts, max_attempts)
+            for uv, faces, island in layouts for opts in PACK_CANDIDATES]
+    workers = min(len(jobs), workers or min(os.cpu_count() or 1, 4))
+    results = None
+    if workers > 1:
+        try:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
+                results = list(ex.map(_coarse_search, jobs))
+        except (OSError, RuntimeError, ValueError):  # no processes here: search in this one
+            results = None
+    if results is None:
+        results = [_coarse_search(j) for j in jobs]
+    plans = []
+    n = len(PACK_CANDIDATES)
+    for li in range(len(layouts)):
+        best, calls = None, 0
+        for opts, r in zip(PACK_CANDIDATES, results[li * n:(li + 1) * n]):
+            if r is None:
+                continue
+            util, tpu, placement, k = r
+            calls += k
+            if best is None or util > best.utilization:
+                best = Plan(util, tpu, dict(opts), 0, placement)
+        if best is not None:
+            best.attempts = calls
+        plans.append(best)
+    return plans
+
+
+def plan_packing(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resolution: int = 2048,
+                 padding: int = 8, max_attempts: int = 16) -> Plan | None:
+    """Search every ``PACK_CANDIDATES`` at ``resolution / COARSE`` (gutter scaled alike); the best.
+
+    xatlas's time is mostly rasterising islands at the atlas resolution, so comparing
+    candidates (or island layouts) at a quarter of it costs about a third. None if xatlas
+    never gave a valid placement.
+    """
+    return plan_layouts([(uv, faces, island)], resolution=resolution, padding=padding,
+                        max_attempts=max_attempts)[0]
 
 
 def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resolution: int = 2048,
