@@ -152,20 +152,3 @@ def test_export_folded_single_chart_run(tmp_path, capsys):
     isl = uv_islands(back.faces, back.uv)
     assert verify_packing(back.uv, back.faces, isl, 256)[0] == 0
 
-
-def test_islands_are_handed_to_xatlas_apart():
-    """Charts all live in [-1,1]^2: xatlas gets every island translated (rigidly) beside the others."""
-    rng = np.random.default_rng(5)
-    n = 6
-    uv = rng.uniform(-1, 1, size=(n * 3, 2))
-    faces = np.arange(n * 3).reshape(n, 3)
-    island = np.array([0, 0, 1, 2, 2, 2])
-    out = pack._apart(uv, faces, island)
-    boxes = []
-    for i in range(3):
-        v = np.unique(faces[island == i])
-        shift = out[v] - uv[v]
-        np.testing.assert_allclose(shift, np.broadcast_to(shift[0], shift.shape), atol=1e-12)  # a translation
-        boxes.append((out[v, 0].min(), out[v, 0].max()))
-    boxes.sort()
-    assert all(a[1] < b[0] for a, b in zip(boxes, boxes[1:]))  # side by side, not touching
