@@ -78,6 +78,7 @@ def _merge(pieces: list[Piece]):
             continue
         p = _welded(p)
         isl = uv_islands(p.faces, p.uv)
+        p = _split_shared(p, isl)
         xyz.append(p.xyz)
         uv.append(p.uv)
         faces.append(p.faces + v_off)
@@ -88,6 +89,17 @@ def _merge(pieces: list[Piece]):
     if not faces:
         raise ValueError("no chart has any in-domain surface left: nothing to texture")
     return tuple(np.concatenate(a) for a in (xyz, uv, faces, chart, island))
+
+
+def _split_shared(p: Piece, island: np.ndarray) -> Piece:
+    """One vertex per (vertex, island): islands touching at a single vertex (connected through
+    no edge, so separate islands) must not share it, or packing one would move the other's corner."""
+    n = int(island.max()) + 1
+    key = p.faces.ravel() * n + np.repeat(island, 3)
+    uniq, inverse = np.unique(key, return_inverse=True)
+    if len(uniq) == len(p.xyz):
+        return p
+    return Piece(p.chart, p.xyz[uniq // n], p.uv[uniq // n], inverse.reshape(-1, 3))
 
 
 def _uv_face_areas(p: Piece) -> np.ndarray:

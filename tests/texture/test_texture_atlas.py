@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from texture_helpers import cap_chart, sphere_charts
 
-from texture.atlas import AtlasConfig, build_atlas
+from texture.atlas import AtlasConfig, _merge, build_atlas
 from texture.charts import ChartGrids, load_charts
 from texture.clip import clip_mesh, grid_faces
 from texture.islands import uv_islands
@@ -144,3 +144,30 @@ def test_build_atlas_is_deterministic(sphere_run):
     np.testing.assert_array_equal(a.mesh.uv, b.mesh.uv)
     np.testing.assert_array_equal(a.mesh.faces, b.mesh.faces)
     assert a.stats["doubly_covered_percent"] == b.stats["doubly_covered_percent"]
+
+
+def test_islands_touching_at_a_vertex_get_their_own_copy():
+    """Two squares of one chart meeting at a single corner are two islands (no shared edge); packing
+    one must not drag the other's corner along, so _merge gives each its own vertex there."""
+    from texture.trim import Piece
+
+    t = np.linspace(0.0, 1.0, 9)
+    u, v = np.meshgrid(t, t, indexing="xy")
+    grid_uv = np.column_stack([u.ravel(), v.ravel()])
+    from texture.clip import grid_faces
+
+    f = grid_faces(9)
+    uv = np.concatenate([grid_uv - 1.0, grid_uv])  # squares [-1,0]^2 and [0,1]^2 meet at (0, 0)
+    faces = np.concatenate([f, f + len(grid_uv)])
+    shared = np.flatnonzero(np.all(uv == 0.0, axis=1))
+    faces[faces == shared[1]] = shared[0]  # one vertex index for the common corner
+    piece = Piece(0, np.column_stack([uv, np.zeros(len(uv))]), uv, faces)
+    xyz, uv_local, faces_m, chart, island = _merge([piece])
+    assert island.max() == 1
+    for i in range(2):  # no vertex is used by both islands
+        assert not np.isin(faces_m[island == i], faces_m[island != i]).any()
+    pk = pack_islands(uv_local, faces_m, island, resolution=128, padding=2)
+    assert verify_packing(pk.uv, faces_m, island, 128)[0] == 0
+    for i in range(2):  # each island is a rigid copy at the shared scale: its UV area scales by scale^2
+        sel = island == i
+        assert np.abs(_uv_area(pk.uv, faces_m[sel])).sum() == pytest.approx(pk.scale ** 2 * 1.0, rel=1e-6)
