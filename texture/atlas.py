@@ -102,12 +102,6 @@ def _split_shared(p: Piece, island: np.ndarray) -> Piece:
     return Piece(p.chart, p.xyz[uniq // n], p.uv[uniq // n], inverse.reshape(-1, 3))
 
 
-def _uv_face_areas(p: Piece) -> np.ndarray:
-    t = p.uv[p.faces]
-    return 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
-                        - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
-
-
 def cut_island(pieces: list[Piece], k: int, island: int, long_axis: bool = True) -> list[Piece]:
     """``pieces`` with island ``island`` of piece ``k`` cut in two by a straight UV line.
 
@@ -117,7 +111,7 @@ def cut_island(pieces: list[Piece], k: int, island: int, long_axis: bool = True)
     """
     p = pieces[k]
     sel = uv_islands(p.faces, p.uv) == island
-    w = _uv_face_areas(p)[sel]
+    w = p.uv_area()[sel]
     centre = p.uv[p.faces[sel]].mean(1)
     c = (centre * w[:, None]).sum(0) / w.sum()
     d = centre - c
@@ -150,7 +144,7 @@ def _halves(p: Piece, field: np.ndarray, passes: int = 4) -> list[Piece]:
             isl = uv_islands(half.faces, half.uv)
             if isl.max() == 0:
                 continue
-            keep = int(np.argmax(np.bincount(isl, weights=_uv_face_areas(half))))
+            keep = int(np.argmax(np.bincount(isl, weights=half.uv_area())))
             verts = c.source_vertex[np.unique(half.faces[isl != keep])]
             verts = verts[verts >= 0]
             if len(verts):
@@ -188,7 +182,7 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
         ranked = []  # (UV area, piece, island)
         for k, p in enumerate(pieces):
             if len(p.faces):
-                area = np.bincount(uv_islands(p.faces, p.uv), weights=_uv_face_areas(p))
+                area = np.bincount(uv_islands(p.faces, p.uv), weights=p.uv_area())
                 ranked += [(float(a), k, i) for i, a in enumerate(area)]
         ranked.sort(key=lambda t: (-t[0], t[1], t[2]))
         for _, k, i in ranked[:CUT_ISLANDS]:
@@ -211,32 +205,6 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
         stats["split_islands"] = 1
         stats["utilization_coarse_cut"] = plans[best].utilization
         return layouts[best], plans[best], stats
-    return pieces, base, stats
-    ranked = []  # (UV area, piece, island)
-    for k, p in enumerate(pieces):
-        if len(p.faces):
-            area = np.bincount(uv_islands(p.faces, p.uv), weights=_uv_face_areas(p))
-            ranked += [(float(a), k, i) for i, a in enumerate(area)]
-    ranked.sort(key=lambda t: (-t[0], t[1], t[2]))
-    best = (base.utilization, pieces, base)
-    stats["utilization_coarse_uncut"] = base.utilization
-    tried = []
-    for _, k, i in ranked[:CUT_ISLANDS]:
-        for long_axis in CUT_AXES:
-            cut = cut_island(pieces, k, i, long_axis)
-            if _island_count(cut) > cfg.max_islands:
-                continue
-            alt = plan(cut)
-            if alt is None:
-                continue
-            tried.append(alt.utilization)
-            if alt.utilization > best[0]:
-                best = (alt.utilization, cut, alt)
-    stats["utilization_coarse_cuts"] = tried
-    if best[2] is not base and best[0] >= base.utilization + cfg.split_gain:
-        stats["split_islands"] = 1
-        stats["utilization_coarse_cut"] = best[0]
-        return best[1], best[2], stats
     return pieces, base, stats
 
 

@@ -135,15 +135,6 @@ class _Part(NamedTuple):
         return _Part(Piece(p.chart, p.xyz[used], p.uv[used], remap[p.faces[faces]]), self.ref[used])
 
 
-def orientation_field(piece: Piece, reference: Reference) -> np.ndarray:
-    """(V,) cosine between the piece's vertex normal and the reference normal there.
-
-    Vertices farther than ``NEAR`` from the reference take the sign of the piece's
-    majority (near vertices, area-weighted), so a chart that is off the surface is never cut.
-    """
-    return _field(_Part.of(piece, reference))
-
-
 def _field(part: _Part) -> np.ndarray:
     p = part.piece
     g = (vertex_normals(p.xyz, p.faces) * part.ref[:, :3]).sum(1)

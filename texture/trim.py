@@ -62,6 +62,11 @@ class Piece(NamedTuple):
         t = self.xyz[self.faces]
         return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
 
+    def uv_area(self) -> np.ndarray:
+        t = self.uv[self.faces]
+        return 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+                            - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+
 
 def _clip_piece(piece: Piece, field: np.ndarray) -> tuple[Piece, np.ndarray]:
     """Clipped piece and, per output vertex, the input vertex it is (-1 for cut points)."""
@@ -133,13 +138,6 @@ def ownership_fields(pieces: list[Piece], cover_tol: float, banned: list[np.ndar
     return fields
 
 
-def _face_areas(piece: Piece) -> tuple[np.ndarray, np.ndarray]:
-    t = piece.uv[piece.faces]
-    uv_area = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
-                           - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
-    return uv_area, piece.area()
-
-
 def _small_islands(piece: Piece, min_area: float) -> tuple[np.ndarray, np.ndarray]:
     """(island id per face, bool per island: smaller than ``min_area``)."""
     if len(piece.faces) == 0:
@@ -168,7 +166,7 @@ def _without_slivers(piece: Piece) -> Piece:
     """Remove faces with (numerically) zero UV or 3D area."""
     if len(piece.faces) == 0:
         return piece
-    uv_area, area = _face_areas(piece)
+    uv_area, area = piece.uv_area(), piece.area()
     return _drop_faces(piece, (uv_area > 1e-12 * max(float(np.median(uv_area)), 1e-300)) & (area > 0))
 
 
