@@ -18,18 +18,10 @@ import colorsys
 
 import numpy as np
 
+from texture.geometry import triangle_areas
+
 #: a generated texture must give each square at least this many texels
 MIN_TEXELS_PER_SQUARE = 4
-
-
-def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Per-face area (F,) of triangles ``points[faces]``; points (V, 2) or (V, 3)."""
-    p = np.asarray(points, np.float64)
-    a, b, c = p[faces[:, 0]], p[faces[:, 1]], p[faces[:, 2]]
-    if p.shape[1] == 2:
-        e1, e2 = b - a, c - a
-        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
 
 
 def uv_length_scale(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> float:

@@ -69,16 +69,27 @@ class Atlas:
         return self.mesh.transformed(self.normalization)
 
 
-def _merge(pieces: list[Piece]):
+def _prepared(p: Piece, cache: dict | None = None) -> tuple[Piece, np.ndarray]:
+    """(``p`` welded, with vertices shared by islands split; island per face). ``cache``, keyed
+    by the piece object, spares the work for the pieces that candidate layouts share."""
+    if cache is not None and id(p) in cache:
+        return cache[id(p)][1:]
+    q = _welded(p)
+    isl = uv_islands(q.faces, q.uv)
+    out = (_split_shared(q, isl), isl)
+    if cache is not None:
+        cache[id(p)] = (p, *out)  # holding p keeps its id from being reused
+    return out
+
+
+def _merge(pieces: list[Piece], cache: dict | None = None):
     """Concatenate pieces -> (xyz, chart-local uv, faces, chart per face, island per face)."""
     xyz, uv, faces, chart, island = [], [], [], [], []
     v_off = i_off = 0
     for p in pieces:
         if len(p.faces) == 0:
             continue
-        p = _welded(p)
-        isl = uv_islands(p.faces, p.uv)
-        p = _split_shared(p, isl)
+        p, isl = _prepared(p, cache)
         xyz.append(p.xyz)
         uv.append(p.uv)
         faces.append(p.faces + v_off)
@@ -155,10 +166,6 @@ def _halves(p: Piece, field: np.ndarray, passes: int = 4) -> list[Piece]:
     return [h for h in halves if len(h.faces)]
 
 
-def _island_count(pieces: list[Piece]) -> int:
-    return sum(int(uv_islands(p.faces, p.uv).max()) + 1 for p in pieces if len(p.faces))
-
-
 #: the largest islands (by UV area) tried for a cut, across their principal axis (halving
 #: their long side; along it was never the best on the bunny, spot, bob and eight fits).
 #: Three, not two: on the eight fit only the third largest cut reached 0.6 (coarse 0.61;
@@ -167,20 +174,26 @@ CUT_ISLANDS, CUT_AXES = 3, (True,)
 
 
 def _layout(pieces: list[Piece], cfg: AtlasConfig):
-    """(pieces, coarse packing plan, stats): the islands as they are, or with one cut.
+    """(merged pieces as :func:`_merge` gives them, coarse packing plan, stats): the islands
+    as they are, or with one cut.
 
     xatlas's packer is a heuristic: which cut helps is not predictable from the shapes
     (on a bunny fit, cutting the largest island lost 0.09 of utilisation and cutting the
     second largest gained 0.13), so the cuts of the ``CUT_ISLANDS`` largest islands are
     each packed at the coarse resolution and the best is kept if it gains ``split_gain``.
     """
+    cache: dict = {}  # the layouts share all pieces but the cut one
+
     def arrays(ps):
-        _, uv, faces, _, island = _merge(ps)
+        _, uv, faces, _, island = _merge(ps, cache)
         return uv, faces, island
+
+    def island_count(ps):
+        return sum(int(_prepared(p, cache)[1].max()) + 1 for p in ps if len(p.faces))
 
     layouts = [pieces]
     stats = {"split_islands": 0}
-    if cfg.max_islands > 0 and _island_count(pieces) + 1 <= cfg.max_islands:
+    if cfg.max_islands > 0 and island_count(pieces) + 1 <= cfg.max_islands:
         ranked = []  # (UV area, piece, island)
         for k, p in enumerate(pieces):
             if len(p.faces):
@@ -190,7 +203,7 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
         for _, k, i in ranked[:CUT_ISLANDS]:
             for long_axis in CUT_AXES:
                 cut = cut_island(pieces, k, i, long_axis)
-                if _island_count(cut) <= cfg.max_islands:
+                if island_count(cut) <= cfg.max_islands:
                     layouts.append(cut)
     # each layout gets a fresh search with both option sets (xatlas's validity is not
     # monotone in the scale, so a search from the uncut layout's scale stops at the first
@@ -199,15 +212,15 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
     plans = plan_layouts([arrays(ps) for ps in layouts], resolution=cfg.resolution, padding=cfg.padding)
     base = plans[0]
     if base is None or len(layouts) == 1:
-        return pieces, base, stats
+        return _merge(pieces, cache), base, stats
     stats["utilization_coarse_uncut"] = base.utilization
     stats["utilization_coarse_cuts"] = [p.utilization for p in plans[1:] if p is not None]
     best = max(range(1, len(plans)), key=lambda i: plans[i].utilization if plans[i] is not None else -1.0)
     if plans[best] is not None and plans[best].utilization >= base.utilization + cfg.split_gain:
         stats["split_islands"] = 1
         stats["utilization_coarse_cut"] = plans[best].utilization
-        return layouts[best], plans[best], stats
-    return pieces, base, stats
+        return _merge(layouts[best], cache), plans[best], stats
+    return _merge(pieces, cache), base, stats
 
 
 def _welded(p: Piece) -> Piece:
@@ -219,9 +232,9 @@ def _welded(p: Piece) -> Piece:
     return Piece(p.chart, p.xyz[first], p.uv[first], inverse.reshape(-1)[p.faces])
 
 
-def coverage_stats(charts: ChartGrids, pieces: list[Piece], reference: np.ndarray | None, seed: int) -> dict:
-    """F-score of the run's kept mesh and of the trimmed atlas against ``reference`` (unit frame)."""
-    xyz, _, faces, _, _ = _merge(pieces)
+def coverage_stats(charts: ChartGrids, xyz: np.ndarray, faces: np.ndarray, reference: np.ndarray | None,
+                   seed: int) -> dict:
+    """F-score of the run's kept mesh and of the trimmed atlas ``(xyz, faces)`` against ``reference`` (unit frame)."""
     trimmed_pts, _ = sample_surface(xyz, faces, POINTS, seed)
     kept_pts = ref = None
     if charts.kept_vertices is not None and len(charts.kept_faces):
@@ -258,8 +271,7 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         total = sum(float(p.area().sum()) for p in pieces)
         pieces, orient_stats = orient_pieces(pieces, reference, cfg.trim.min_island_fraction * total)
     t1 = time.perf_counter()
-    pieces, plan, split_stats = _layout(pieces, cfg)
-    xyz, uv_local, faces, chart, island = _merge(pieces)
+    (xyz, uv_local, faces, chart, island), plan, split_stats = _layout(pieces, cfg)
     packing = pack_islands(uv_local, faces, island, resolution=cfg.resolution, padding=cfg.padding, plan=plan)
     t2 = time.perf_counter()
     mesh = make_uv_mesh(charts.normalization.invert(xyz), faces, packing.uv, name="atlas")
@@ -271,7 +283,7 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         **trimmed.stats,
         **orient_stats,
         **split_stats,
-        **coverage_stats(charts, pieces, reference_points, cfg.seed),
+        **coverage_stats(charts, xyz, faces, reference_points, cfg.seed),
         "utilization": packing.utilization,
         "packer": packing.packer,
         "uv_scale": packing.scale,

@@ -16,6 +16,16 @@ from scipy.spatial import cKDTree
 from .islands import edge_keys, edge_use_counts, half_edges
 
 
+def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Per-face area (F,) of triangles ``points[faces]``; points (V, 2) or (V, 3)."""
+    p = np.asarray(points, np.float64)
+    a, b, c = p[faces[:, 0]], p[faces[:, 1]], p[faces[:, 2]]
+    if p.shape[1] == 2:
+        e1, e2 = b - a, c - a
+        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
     """Closest point of each triangle ``(a, b, c)`` to ``p``, all (N, 3); returns (point, bary (N, 3))."""
     ab, ac, ap = b - a, c - a, p - a

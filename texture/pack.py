@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .geometry import triangle_areas
 from .raster import iter_hits
 
 #: largest allowed distance (texels) between xatlas's placement and the re-placed island.
@@ -138,9 +139,7 @@ def _xatlas_pack(uv, faces, island, resolution, padding, tpu, options: dict | No
     # of 1 an older genus-2 fit's 6 islands came back as 7 charts and a torus fit's 8 islands
     # as 44 (at 10: 11); at 100 both are whole. Moving the islands apart in UV as well kept
     # them whole too but changed xatlas's layouts (a bunny fit packed 0.64 -> 0.56).
-    tri = uv[faces]
-    area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
-                        - (tri[:, 1, 1] - tri[:, 0, 1]) * (tri[:, 2, 0] - tri[:, 0, 0]))
+    area = triangle_areas(uv, faces)
     median = float(np.median(area[area > 0])) if (area > 0).any() else 1.0
     unit = UV_UNIT / np.sqrt(median)
     atlas = xatlas.Atlas()
@@ -165,9 +164,7 @@ class _Islands:
         self.n = int(island.max()) + 1
         vert_island = np.full(len(uv), -1)
         vert_island[faces.ravel()] = np.repeat(island, 3)
-        tri = uv[faces]
-        area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
-                            - (tri[:, 1, 1] - tri[:, 0, 1]) * (tri[:, 2, 0] - tri[:, 0, 0]))
+        area = triangle_areas(uv, faces)
         self.area = float(area.sum())
         solid = area > SOLID_FACE_REL * np.median(area)
         # vertex weight: area of its solid faces, so slivers xatlas drops never steer the fit
@@ -364,6 +361,18 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     if isl.area <= 0:
         raise ValueError("pack_islands: all UV faces have zero area")
     best, attempts = None, 0  # (utilisation, tpu, texel positions)
+
+    def search(opts, start=None, shrink=SHRINK):  # keeps the best valid placement found
+        nonlocal best, attempts
+        found = _search(isl, resolution, padding, opts, max_attempts, start, shrink)
+        if found is None:
+            return
+        tpu, px, n = found
+        attempts += n
+        overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
+        if overlap == 0 and (best is None or util > best[0]):
+            best = (util, tpu, px)
+
     searches = [(options, None, SHRINK)] if options is not None else []
     if options is None:
         plan = plan or plan_packing(uv, faces, island, resolution=resolution, padding=padding,
@@ -380,23 +389,10 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
             if best is None:
                 searches = [(plan.options, plan.texels_per_unit, FINE_SHRINK)]
     for opts, start, shrink in searches:
-        found = _search(isl, resolution, padding, opts, max_attempts, start, shrink)
-        if found is None:
-            continue
-        tpu, px, n = found
-        attempts += n
-        overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
-        if overlap == 0 and (best is None or util > best[0]):
-            best = (util, tpu, px)
+        search(opts, start, shrink)
     if best is None and options is None:  # the coarse plan did not carry over: search every candidate
         for opts in PACK_CANDIDATES:
-            found = _search(isl, resolution, padding, opts, max_attempts)
-            if found is not None:
-                tpu, px, n = found
-                attempts += n
-                overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
-                if overlap == 0 and (best is None or util > best[0]):
-                    best = (util, tpu, px)
+            search(opts)
     packer = "xatlas"
     if best is None:
         tpu, px = shelf_pack(isl, resolution, padding)

@@ -22,6 +22,7 @@ from scipy import ndimage
 from mna.atomic import atomic_path
 from mna.errors import InputError
 
+from .geometry import triangle_areas
 from .raster import face_id_image
 from .uvmesh import UVMesh
 
@@ -49,11 +50,8 @@ def check_size(size) -> int:
 
 def uv_per_length(mesh_unit: UVMesh) -> float:
     """``sqrt(sum |UV area| / sum 3D area)``: UV length per unit of surface length."""
-    t = mesh_unit.uv[mesh_unit.faces]
-    p = mesh_unit.vertices[mesh_unit.faces]
-    uv_area = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
-                           - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])).sum()
-    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+    uv_area = triangle_areas(mesh_unit.uv, mesh_unit.faces).sum()
+    area = triangle_areas(mesh_unit.vertices, mesh_unit.faces).sum()
     return float(np.sqrt(uv_area / area))
 
 

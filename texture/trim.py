@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from .charts import ChartGrids
 from .clip import clip_mesh, grid_faces
-from .geometry import MeshProjector, sample_surface
+from .geometry import MeshProjector, sample_surface, triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 
 
@@ -59,13 +59,10 @@ class Piece(NamedTuple):
     faces: np.ndarray  # (F, 3)
 
     def area(self) -> np.ndarray:
-        t = self.xyz[self.faces]
-        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        return triangle_areas(self.xyz, self.faces)
 
     def uv_area(self) -> np.ndarray:
-        t = self.uv[self.faces]
-        return 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
-                            - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+        return triangle_areas(self.uv, self.faces)
 
 
 def _clip_piece(piece: Piece, field: np.ndarray) -> tuple[Piece, np.ndarray]:
