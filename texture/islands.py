@@ -12,10 +12,32 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 
+def unique_rows(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first, ids) of the distinct rows of ``values`` (N, K): the index of each distinct row's
+    first occurrence, in lexicographic row order, and (N,) the id of each row's distinct row.
+
+    The same as ``np.unique(values, axis=0, return_index=True, return_inverse=True)[1:]``,
+    column by column (a 1-D sort per column) instead of one row-wise sort, which is several
+    times slower on float rows.
+    """
+    values = np.asarray(values)
+    values = values.reshape(len(values), -1)
+    if values.shape[1] == 0 or len(values) == 0:
+        return np.zeros(min(len(values), 1), np.int64), np.zeros(len(values), np.int64)
+    ids = np.zeros(len(values), np.int64)
+    for col in values.T:
+        _, col_ids = np.unique(col, return_inverse=True)
+        key = ids * (int(col_ids.max()) + 1) + col_ids.reshape(-1)  # < N^2: fits in int64
+        _, ids = np.unique(key, return_inverse=True)
+        ids = ids.reshape(-1)
+    first = np.full(int(ids.max()) + 1, len(ids), np.int64)
+    np.minimum.at(first, ids, np.arange(len(ids)))
+    return first, ids
+
+
 def _point_ids(values: np.ndarray) -> np.ndarray:
     """(V,) id per row of ``values``, equal iff the rows are exactly equal."""
-    _, ids = np.unique(np.asarray(values), axis=0, return_inverse=True)
-    return ids.reshape(-1)
+    return unique_rows(values)[1]
 
 
 def half_edges(faces: np.ndarray) -> np.ndarray:

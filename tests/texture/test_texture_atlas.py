@@ -171,3 +171,73 @@ def test_islands_touching_at_a_vertex_get_their_own_copy():
     for i in range(2):  # each island is a rigid copy at the shared scale: its UV area scales by scale^2
         sel = island == i
         assert np.abs(_uv_area(pk.uv, faces_m[sel])).sum() == pytest.approx(pk.scale ** 2 * 1.0, rel=1e-6)
+
+
+def _rectangle_island(G=41):
+    from texture.trim import Piece
+
+    rows = (G + 1) // 2
+    lin = np.linspace(0.0, 2.0, G)  # a 2 x 1 rectangle of square cells: its long (principal) axis is u
+    u, v = np.meshgrid(lin, lin[:rows], indexing="xy")
+    uv = np.column_stack([u.ravel(), v.ravel()])
+    faces = grid_faces(G)[: 2 * (G - 1) * (rows - 1)]  # the cells of the first rows - 1 rows
+    return Piece(0, np.column_stack([uv, np.zeros(len(uv))]), uv, faces)
+
+
+@pytest.mark.parametrize("fraction", [None, 0.25, 0.75])
+def test_cut_island_leaves_the_asked_area_fraction(fraction):
+    from texture.atlas import cut_island
+
+    p = _rectangle_island()
+    area = p.uv_area().sum()
+    parts = cut_island([p], 0, 0, long_axis=True, fraction=fraction)
+    assert len(parts) == 2
+    areas = sorted(q.uv_area().sum() / area for q in parts)
+    # the cut loses and adds nothing (up to slivers the clip drops where it runs along grid vertices)
+    assert sum(areas) == pytest.approx(1.0, abs=1e-6)
+    want = 0.25 if fraction is not None else 0.5  # the centroid halves a rectangle
+    # the cut sits at a face-centre quantile: within one grid column (1/40 of the length)
+    assert areas[0] == pytest.approx(want, abs=1 / 40)
+    for q in parts:  # a straight cut across the long axis: each part spans the full width
+        assert np.ptp(q.uv[np.unique(q.faces), 1]) == pytest.approx(np.ptp(p.uv[:, 1]))
+    with pytest.raises(ValueError, match="fraction"):
+        cut_island([p], 0, 0, fraction=1.0)
+
+
+def test_search_gives_up_below_min_estimate():
+    from texture.pack import plan_layouts
+
+    p = _rectangle_island()
+    island = np.zeros(len(p.faces), np.int64)
+    plain = plan_layouts([(p.uv, p.faces, island)], resolution=256, padding=2, workers=1)[0]
+    assert plain is not None and 0.3 < plain.utilization < 1.0
+    # one rectangle cannot fill more than the square: an estimate above 1 prunes every search
+    assert plan_layouts([(p.uv, p.faces, island)], resolution=256, padding=2, workers=1, min_estimate=1.01) == [None]
+
+
+@pytest.mark.parametrize("target", [0.0, 1.0])
+def test_off_centre_cuts_only_below_the_target(sphere_run, target):
+    charts = load_charts(sphere_run / "charts.npz")
+    s = build_atlas(charts, AtlasConfig(resolution=256, padding=2, target_utilization=target)).stats
+    tried = s.get("utilization_coarse_off_centre_cuts")
+    if target == 0.0:
+        assert tried is None
+    else:  # no packing reaches 1: the two caps x 2 axes x 2 positions are packed too
+        assert len(tried) == 8
+        assert s["islands"] == 3 and s["split_islands"] == 1
+        # the kept cut is the best of both rounds
+        found = [u for u in s["utilization_coarse_cuts"] + tried if u is not None]
+        assert s["utilization_coarse_cut"] == max(found)
+        assert s["cut"]["through_centroid"] == (s["cut"]["area_fraction"] == 0.5)
+
+
+def test_unique_rows_matches_numpy():
+    from texture.islands import unique_rows
+
+    rng = np.random.default_rng(3)
+    v = rng.integers(0, 4, (500, 3)).astype(float) * 0.1
+    v[::7, 1] = -0.0  # equal to 0.0, as in np.unique
+    _, first, ids = np.unique(v, axis=0, return_index=True, return_inverse=True)
+    f2, i2 = unique_rows(v)
+    np.testing.assert_array_equal(f2, first)
+    np.testing.assert_array_equal(i2, ids.reshape(-1))
