@@ -11,6 +11,11 @@ from mna.metrics import chamfer_fscore
 from mna.neighbors import nearest
 
 
+def _f(x) -> float:
+    """A loss term as a float (detached: no autograd warning)."""
+    return float(torch.as_tensor(x).detach())
+
+
 def test_positive_labels_match_naive_loop():
     rng = np.random.default_rng(0)
     samples = torch.from_numpy(rng.normal(size=(300, 3)))
@@ -120,7 +125,7 @@ def test_batched_objective_equals_per_shape_loop(atlasnet):
     singles = [atlas_losses(model, uv[:, b:b + 1], targets[b:b + 1], cfg, z[b:b + 1]) for b in range(B)]
     for name in ("rec", "occ", "dist", "total"):
         expected = sum(getattr(s, name) for s in singles) / B
-        assert float(getattr(batched, name)) == pytest.approx(float(expected), rel=1e-10), name
+        assert _f(getattr(batched, name)) == pytest.approx(_f(expected), rel=1e-10), name
     assert batched.positives == sum(s.positives for s in singles)
 
 
@@ -135,24 +140,24 @@ def test_orientation_loss_closed_forms():
     jac = _plane_jacobians(8)
     one_group = torch.zeros(8, dtype=torch.long)
     agree = up.expand(8, 3)
-    assert float(losses.orientation_loss(jac, agree, one_group)) == 0.0
+    assert _f(losses.orientation_loss(jac, agree, one_group)) == 0.0
     # either handedness of a chart is fine: all normals reversed is still consistent
-    assert float(losses.orientation_loss(jac, -agree, one_group)) == 0.0
+    assert _f(losses.orientation_loss(jac, -agree, one_group)) == 0.0
     # 2 of 8 reversed against a majority of 6: each contributes relu(1) = 1
     mixed = agree.clone()
     mixed[:2] = -up
-    assert float(losses.orientation_loss(jac, mixed, one_group)) == pytest.approx(2 / 8, abs=1e-15)
+    assert _f(losses.orientation_loss(jac, mixed, one_group)) == pytest.approx(2 / 8, abs=1e-15)
     # a reversed normal tilted by theta contributes cos(theta); the Jacobian's length does not matter
     theta = 0.3
     tilted = torch.tensor([0.0, np.sin(theta), -np.cos(theta)], dtype=torch.float64)
     normals = torch.cat([agree[:7], tilted[None]])
-    assert float(losses.orientation_loss(3.7 * jac, normals, one_group)) == pytest.approx(np.cos(theta) / 8, rel=1e-12)
+    assert _f(losses.orientation_loss(3.7 * jac, normals, one_group)) == pytest.approx(np.cos(theta) / 8, rel=1e-12)
     # the majority is per group: two charts of opposite handedness are both consistent
     groups = torch.tensor([0, 0, 0, 0, 1, 1, 1, 1])
     two = torch.cat([agree[:4], -agree[4:]])
-    assert float(losses.orientation_loss(jac, two, groups)) == 0.0
+    assert _f(losses.orientation_loss(jac, two, groups)) == 0.0
     two[7] = up  # one of chart 1's four normals disagrees with its majority (-up)
-    assert float(losses.orientation_loss(jac, two, groups)) == pytest.approx(1 / 8, abs=1e-15)
+    assert _f(losses.orientation_loss(jac, two, groups)) == pytest.approx(1 / 8, abs=1e-15)
 
 
 def test_orientation_loss_gradcheck():
@@ -182,12 +187,12 @@ def test_objective_orientation_term():
     z = torch.randn(B, 4, dtype=torch.float64)
     t = atlas_losses(model, uv, targets, cfg, z, normals)
     w = cfg.loss
-    assert 0.0 < float(t.orient) < 1.0
-    assert float(t.total) == pytest.approx(float(w.w_rec * t.rec + w.w_occ * t.occ + w.w_dist * t.dist
+    assert 0.0 < _f(t.orient) < 1.0
+    assert _f(t.total) == pytest.approx(_f(w.w_rec * t.rec + w.w_occ * t.occ + w.w_dist * t.dist
                                                  + w.w_orient * t.orient), rel=1e-12)
     singles = [atlas_losses(model, uv[:, b:b + 1], targets[b:b + 1], cfg, z[b:b + 1], normals[b:b + 1])
                for b in range(B)]
-    assert float(t.orient) == pytest.approx(float(sum(s.orient for s in singles)) / B, rel=1e-10)
+    assert _f(t.orient) == pytest.approx(_f(sum(s.orient for s in singles)) / B, rel=1e-10)
     # reversing every normal keeps every chart consistent with itself: same loss
-    assert float(atlas_losses(model, uv, targets, cfg, z, -normals).orient) == pytest.approx(float(t.orient), rel=1e-10)
-    assert float(atlas_losses(model, uv, targets, cfg, z).orient) == 0.0
+    assert _f(atlas_losses(model, uv, targets, cfg, z, -normals).orient) == pytest.approx(_f(t.orient), rel=1e-10)
+    assert _f(atlas_losses(model, uv, targets, cfg, z).orient) == 0.0
