@@ -220,7 +220,7 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
     if cfg.max_islands > 0 and island_count(pieces) + 1 <= cfg.max_islands:
         for k, p in enumerate(pieces):
             if len(p.faces):
-                area = np.bincount(uv_islands(p.faces, p.uv), weights=p.uv_area())
+                area = np.bincount(_prepared(p, cache)[1], weights=p.uv_area())  # same faces, same ids
                 ranked += [(float(a), k, i) for i, a in enumerate(area)]
         ranked.sort(key=lambda t: (-t[0], t[1], t[2]))
 

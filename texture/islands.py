@@ -21,7 +21,7 @@ def unique_rows(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     times slower on float rows.
     """
     values = np.asarray(values)
-    values = values.reshape(len(values), -1)
+    values = values[:, None] if values.ndim == 1 else values
     if values.shape[1] == 0 or len(values) == 0:
         return np.zeros(min(len(values), 1), np.int64), np.zeros(len(values), np.int64)
     ids = np.zeros(len(values), np.int64)
@@ -30,9 +30,7 @@ def unique_rows(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         key = ids * (int(col_ids.max()) + 1) + col_ids.reshape(-1)  # < N^2: fits in int64
         _, ids = np.unique(key, return_inverse=True)
         ids = ids.reshape(-1)
-    first = np.full(int(ids.max()) + 1, len(ids), np.int64)
-    np.minimum.at(first, ids, np.arange(len(ids)))
-    return first, ids
+    return np.unique(ids, return_index=True)[1], ids
 
 
 def _point_ids(values: np.ndarray) -> np.ndarray:

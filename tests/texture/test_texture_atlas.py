@@ -154,8 +154,6 @@ def test_islands_touching_at_a_vertex_get_their_own_copy():
     t = np.linspace(0.0, 1.0, 9)
     u, v = np.meshgrid(t, t, indexing="xy")
     grid_uv = np.column_stack([u.ravel(), v.ravel()])
-    from texture.clip import grid_faces
-
     f = grid_faces(9)
     uv = np.concatenate([grid_uv - 1.0, grid_uv])  # squares [-1,0]^2 and [0,1]^2 meet at (0, 0)
     faces = np.concatenate([f, f + len(grid_uv)])
@@ -241,3 +239,5 @@ def test_unique_rows_matches_numpy():
     f2, i2 = unique_rows(v)
     np.testing.assert_array_equal(f2, first)
     np.testing.assert_array_equal(i2, ids.reshape(-1))
+    empty_first, empty_ids = unique_rows(np.zeros((0, 5)))  # no rows: no ids (uv_islands of an empty piece)
+    assert len(empty_first) == 0 and len(empty_ids) == 0

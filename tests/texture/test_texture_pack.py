@@ -151,4 +151,3 @@ def test_export_folded_single_chart_run(tmp_path, capsys):
     assert back.uv.min() >= 0 and back.uv.max() <= 1
     isl = uv_islands(back.faces, back.uv)
     assert verify_packing(back.uv, back.faces, isl, 256)[0] == 0
-
