@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/fit_quality.py                      # 300 s per mesh, all meshes
     .venv/bin/python benchmarks/fit_quality.py --budget 60 --only bunny,eight --no-write
+    python benchmarks/fit_quality.py --device cuda --budget 60      # GPU: section fit_quality_cuda
 
 For every mesh in ../shared/data/meshes: the ``fast`` preset with 3 charts (and 1 chart on
 the open surfaces) under a wall-clock budget, then DESIGN's metrics; next to each, the
@@ -47,22 +48,29 @@ def oracle_fscore(path: Path, points: int = 25000) -> float:
     return chamfer_fscore(a, b).fscore
 
 
-def paper_steps_per_second(path: Path, steps: int) -> float:
+def _sync(device: str) -> None:
+    if device == "cuda":
+        torch.cuda.synchronize()
+
+
+def paper_steps_per_second(path: Path, steps: int, device: str = "cpu") -> float:
     cfg = C.paper()
     s = load_surface(path)
-    f = Fitter(cfg, s, torch.device("cpu"))
+    f = Fitter(cfg, s, torch.device(device))
     f.train_step()  # warm-up
+    _sync(device)
     t0 = time.perf_counter()
     for _ in range(steps):
         f.train_step()
+    _sync(device)
     return steps / (time.perf_counter() - t0)
 
 
-def run_one(path: Path, charts: int, budget: float, work: Path) -> dict:
+def run_one(path: Path, charts: int, budget: float, work: Path, device: str = "cpu") -> dict:
     cfg = C.fast()
     cfg.model.charts = charts
     cfg.time_budget = budget
-    cfg.device = "cpu"
+    cfg.device = device
     t0 = time.perf_counter()
     name = path.stem if charts == 3 else f"{path.stem}_k{charts}"  # 3-chart runs feed atlas_vs_xatlas --reuse
     res = fit_run(str(path), work / name, cfg, progress_bar=False, log=lambda s: None)
@@ -106,6 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--paper-steps", type=int, default=10, help="steps timed for the paper preset (0 = skip)")
     ap.add_argument("--work", type=Path, default=ROOT / "benchmarks" / "runs", help="run folders (git-ignored)")
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"],
+                    help="fit on this device (default cpu; cuda writes the section fit_quality_cuda)")
     args = ap.parse_args(argv)
     if not args.meshes.is_dir():
         print(f"fit_quality: mesh folder not found: {args.meshes}", file=sys.stderr)
@@ -118,31 +128,37 @@ def main(argv: list[str] | None = None) -> int:
     for name, k in jobs:
         path = args.meshes / name
         oracle.setdefault(name, oracle_fscore(path))
-        r = run_one(path, k, args.budget, args.work)
+        r = run_one(path, k, args.budget, args.work, args.device)
         rows.append(r)
         print(f"{name} K={k}: F_mesh {r['fscore_mesh']:.2f} (oracle {oracle[name]:.2f}), "
               f"d_metric {r['distortion_metric']:.3f}, {r['steps']} steps, {r['sps']:.2f} steps/s", flush=True)
     paper_sps = None
     if args.paper_steps and (args.meshes / "bunny.off").is_file():
-        paper_sps = paper_steps_per_second(args.meshes / "bunny.off", args.paper_steps)
+        paper_sps = paper_steps_per_second(args.meshes / "bunny.off", args.paper_steps, args.device)
         print(f"paper preset: {paper_sps:.2f} steps/s", flush=True)
     cfg = C.fast()
+    section = "fit_quality" if args.device == "cpu" else "fit_quality_cuda"
+    if args.device == "cuda":
+        where = f"{torch.cuda.get_device_name(0)} (CUDA {torch.version.cuda}), host {os.cpu_count()} cores"
+    else:
+        where = f"CPU, {torch.get_num_threads()} threads"
+    flags = "" if args.device == "cpu" else f" --device {args.device}"
     text = (
-        "## fit_quality\n\n"
-        f"`benchmarks/fit_quality.py --budget {args.budget:.0f}`: preset `fast` (width {cfg.model.chart_width}, "
+        f"## {section}\n\n"
+        f"`benchmarks/fit_quality.py --budget {args.budget:.0f}{flags}`: preset `fast` (width {cfg.model.chart_width}, "
         f"{cfg.uv_samples} UV samples/chart, {cfg.targets} fresh targets/step, L_dist on {cfg.dist_samples} "
         f"positives/chart, lr {cfg.lr} with cosine decay from {cfg.lr_decay_start:.0%} of the budget), seed 0, "
         f"{args.budget:.0f} s of fitting per mesh. Machine: {platform.machine()}, {os.cpu_count()} cores, "
-        f"torch {torch.__version__} (CPU, {torch.get_num_threads()} threads); load average at start {load:.1f}. "
+        f"torch {torch.__version__} ({where}); load average at start {load:.1f}. "
         "Metrics in the unit-ball frame, 25,000 points each side; oracle F = two independent "
         "25,000-point samples of the input surface.\n\n"
         + table(rows, oracle) + "\n\n"
-        + (f"Paper preset (width 512, 5,000 UV samples, 2,500 targets): **{paper_sps:.2f} steps/s** on this CPU "
+        + (f"Paper preset (width 512, 5,000 UV samples, 2,500 targets): **{paper_sps:.2f} steps/s** on this {args.device.upper()} "
            f"(bunny, 3 charts, {args.paper_steps} steps).\n" if paper_sps else "")
     )
     print(text)
     if not args.no_write:
-        write_section("fit_quality", text)
+        write_section(section, text)
     return 0
 
 

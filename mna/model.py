@@ -50,6 +50,11 @@ def flush_denormals(enabled: bool = True) -> Iterator[None]:
         _flushing = previous
 
 
+def wide(t: torch.Tensor) -> torch.Tensor:
+    """``t`` in at least float32 (float16/bfloat16 from autocast are widened; float64 stays)."""
+    return t.float() if t.dtype in (torch.float16, torch.bfloat16) else t
+
+
 class BatchedLinear(nn.Module):
     """K independent linear layers ``y_k = x_k W_k + b_k`` with optional weight norm.
 
@@ -138,12 +143,16 @@ class ChartNet(nn.Module):
                 # d softplus_beta(x) / dx = sigmoid(beta x)
                 t = tp * torch.sigmoid(SOFTPLUS_BETA * pre).unsqueeze(1)
             h = F.softplus(pre, beta=SOFTPLUS_BETA)
-        w = self.out.weight()
-        x = torch.baddbmm(self.out.b.unsqueeze(1), h, w).view(K, B, N, 3)
-        jac = None
-        if jacobian:
-            jt = torch.bmm(t.reshape(K, 2 * M, -1), w).view(K, 2, B, N, 3)
-            jac = jt.permute(0, 2, 3, 4, 1)  # (K, B, N, 3, 2): columns d/du, d/dv
+        # The output layer runs in float32 even under autocast: float16 positions are quantised
+        # to ~5e-4 of the unit ball, and g = J^T J from float16 Jacobians loses det(g) to
+        # cancellation (inf distortion, every mixed-precision step skipped).
+        with torch.autocast(h.device.type, enabled=False):
+            w = self.out.weight()
+            x = torch.baddbmm(self.out.b.unsqueeze(1), wide(h), w).view(K, B, N, 3)
+            jac = None
+            if jacobian:
+                jt = torch.bmm(wide(t.reshape(K, 2 * M, -1)), w).view(K, 2, B, N, 3)
+                jac = jt.permute(0, 2, 3, 4, 1)  # (K, B, N, 3, 2): columns d/du, d/dv
         return ChartForward(x, jac)
 
 

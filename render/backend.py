@@ -108,7 +108,8 @@ def choose_variant(requested: str | None = None) -> VariantChoice:
         log.warning(msg)
         return VariantChoice(avail[0], msg)
     warning = None
-    if "llvm_ad_rgb" in mi.variants() and "llvm_ad_rgb" not in avail:
+    # only the slow fallback is worth a warning: CUDA, when it works, is preferred anyway
+    if avail[0] == "scalar_rgb" and "llvm_ad_rgb" in mi.variants():
         warning = (f"Mitsuba LLVM backend unavailable ({_missing_reason('llvm_ad_rgb')}); "
                    f"rendering with {avail[0]} (about 10x slower)")
         log.warning(warning)

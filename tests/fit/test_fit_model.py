@@ -94,3 +94,24 @@ def test_label_net_matches_naive_loop():
         ref = torch.sigmoid(h @ net.out.weight()[k] + net.out.b[k])[:, 0]
         torch.testing.assert_close(out[k, 0], ref)
     assert ((out > 0) & (out < 1)).all()
+
+
+def test_chart_outputs_stay_float32_under_autocast():
+    """Mixed precision (autocast) runs the hidden layers in low precision, but positions and
+    Jacobians come out in float32: float16 positions are quantised to ~5e-4 and g = J^T J from
+    float16 Jacobians loses det(g) to cancellation."""
+    torch.manual_seed(0)
+    net = ChartNet(charts=2, width=64, depth=4, skip=2)
+    uv = torch.rand(2, 1, 500, 2) * 2 - 1
+    ref = net(uv, jacobian=True)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        low = net(uv, jacobian=True)
+        hidden = F.linear(uv, torch.ones(3, 2))  # autocast is on: a plain matmul comes out bfloat16
+    assert hidden.dtype == torch.bfloat16
+    assert low.x.dtype == low.jac.dtype == torch.float32
+    # bfloat16 hidden layers (8-bit mantissa) move the outputs a little, not to bfloat16's grid
+    assert (low.x - ref.x).abs().max() < 0.05 * ref.x.abs().max()
+    assert (low.jac - ref.jac).abs().max() < 0.05 * ref.jac.abs().max()
+    assert not torch.equal(low.x, low.x.bfloat16().float())
+    double = ChartNet(charts=2, width=64, depth=4, skip=2).double()
+    assert double(uv.double(), jacobian=True).jac.dtype == torch.float64  # wider stays wider
