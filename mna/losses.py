@@ -9,7 +9,6 @@ import torch
 from torch.nn import functional as F
 
 from mna import distortion
-from mna.model import wide
 
 
 def positive_labels(nearest_index: torch.Tensor, total: int) -> torch.Tensor:
@@ -25,12 +24,12 @@ def positive_labels(nearest_index: torch.Tensor, total: int) -> torch.Tensor:
 
 def reconstruction_loss(targets: torch.Tensor, matched: torch.Tensor) -> torch.Tensor:
     """Unidirectional Chamfer: ``mean_t ||y_t - x_nn(t)||^2`` with ``matched (T, 3)`` = nearest chart points."""
-    return ((wide(targets) - wide(matched)) ** 2).sum(-1).mean()
+    return ((targets - matched) ** 2).sum(-1).mean()
 
 
 def chamfer_to(points: torch.Tensor, targets: torch.Tensor, nearest_index: torch.Tensor) -> torch.Tensor:
     """``mean_x ||x - y_nn(x)||^2`` for points ``(P, 3)`` whose nearest targets are ``nearest_index (P,)``."""
-    return ((wide(points) - wide(targets[nearest_index])) ** 2).sum(-1).mean()
+    return ((points - targets[nearest_index]) ** 2).sum(-1).mean()
 
 
 def occupancy_loss(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
@@ -40,7 +39,7 @@ def occupancy_loss(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
 
 def distortion_loss(jac: torch.Tensor, eps: float = distortion.SSDE_EPS) -> torch.Tensor:
     """``2 sqrt(mean tr g_hat * mean tr g_hat^-1)`` over Jacobians ``jac (..., 3, 2)`` (one scale for all)."""
-    return distortion.scaled_symmetric_dirichlet(distortion.metric_tensor(wide(jac)), eps)
+    return distortion.scaled_symmetric_dirichlet(distortion.metric_tensor(jac), eps)
 
 
 def orientation_loss(jac: torch.Tensor, normals: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
@@ -53,10 +52,9 @@ def orientation_loss(jac: torch.Tensor, normals: torch.Tensor, group: torch.Tens
     ``mean relu(-s_g c)``. Zero when every chart is consistently oriented (either way: a
     chart's UV handedness is arbitrary); 1 where a normal is exactly reversed.
     """
-    jac = wide(jac)
     n = torch.linalg.cross(jac[..., 0], jac[..., 1], dim=-1)
     n = n / n.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-    c = (n * wide(normals)).sum(-1)
+    c = (n * normals).sum(-1)
     size = int(group.max()) + 1 if len(group) else 0
     votes = torch.zeros(size, device=c.device, dtype=c.dtype).index_add_(0, group, c.detach())
     majority = torch.where(votes >= 0, 1.0, -1.0).to(c.dtype)

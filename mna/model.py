@@ -143,9 +143,9 @@ class ChartNet(nn.Module):
                 # d softplus_beta(x) / dx = sigmoid(beta x)
                 t = tp * torch.sigmoid(SOFTPLUS_BETA * pre).unsqueeze(1)
             h = F.softplus(pre, beta=SOFTPLUS_BETA)
-        # The output layer runs in float32 even under autocast: float16 positions are quantised
-        # to ~5e-4 of the unit ball, and g = J^T J from float16 Jacobians loses det(g) to
-        # cancellation (inf distortion, every mixed-precision step skipped).
+        # The output layer runs in float32 even under autocast, so positions, Jacobians and every
+        # loss built on them are float32: float16 positions are quantised to ~5e-4 of the unit
+        # ball, and g = J^T J from float16 Jacobians would lose det(g) to cancellation.
         with torch.autocast(h.device.type, enabled=False):
             w = self.out.weight()
             x = torch.baddbmm(self.out.b.unsqueeze(1), wide(h), w).view(K, B, N, 3)
