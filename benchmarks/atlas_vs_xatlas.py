@@ -82,7 +82,7 @@ def _row(mesh, r, t_uv, t_total, extra=""):
     bad = r["flipped_area_percent"] + r["folded_area_percent"]
     return (f"| {mesh} | {r['method']} | {r['faces']} | {r['charts']} | {r['seam_length']:.2f} | "
             f"{r['distortion_metric']:.3f} | {r['distortion_conformal']:.3f} | {r['distortion_area']:.3f} | "
-            f"{bad:.2f} | {r['uv_overlap_percent']:.2f} | {r['utilization']:.2f} | {t_uv:.1f} | {t_total} | {extra} |")
+            f"{bad:.2f} | {r.get('orientation_undecided_area_percent', float('nan')):.2f} | {r['uv_overlap_percent']:.2f} | {r['utilization']:.2f} | {t_uv:.1f} | {t_total} | {extra} |")
 
 
 def targets(mesh: str, ours: dict, xa: dict, export_seconds: float) -> str:
@@ -98,7 +98,7 @@ def targets(mesh: str, ours: dict, xa: dict, export_seconds: float) -> str:
 
 def section(results: list[dict], args) -> str:
     head = ("| mesh | method | faces | charts | seam length | distortion metric | conformal | area | "
-            "flipped+folded % | overlap % | utilization | UV time s | total s | targets |")
+            "flipped+folded % | undecided % | overlap % | utilization | UV time s | total s | targets |")
     lines = [f"## {SECTION}", "",
              f"`benchmarks/atlas_vs_xatlas.py` ({time.strftime('%Y-%m-%d')}): `mna fit` fast preset, 3 charts, "
              f"{args.time_budget:g} s budget; `mna extract --grid {args.grid}`; texture {args.size}², padding 8. "
@@ -107,7 +107,7 @@ def section(results: list[dict], args) -> str:
              "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + orient + pack, xatlas = its "
              "`generate`; total: ours = export (atlas + texture + write), plus fit and extract for the run.", "",
              f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-             f"load average {os.getloadavg()[0]:.1f} at the end.", "", head, "|" + "---|" * 14]
+             f"load average {os.getloadavg()[0]:.1f} at the end.", "", head, "|" + "---|" * 15]
     for res in results:
         cmp, exp = res["compare"], res["export"]
         ours, xa = cmp["methods"][0], cmp["methods"][1]
@@ -117,7 +117,7 @@ def section(results: list[dict], args) -> str:
         for r in cmp["methods"][1:]:
             lines.append(_row(res["mesh"], r, r["seconds"], "", ""))
         a = exp["atlas"]
-        lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts | | | | | | | | | "
+        lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts | | | | | | | | | | "
                      f"| doubly covered {a['doubly_covered_percent']:.2f} % (before {a['doubly_covered_percent_before']:.1f} %),"
                      f" F-score drop {a.get('fscore_drop', float('nan')):.2f}; inside-out before orient "
                      f"{a.get('folded_percent_before_orient', float('nan')):.2f} %, reoriented "

@@ -1,10 +1,11 @@
 """Point-to-mesh projection, surface sampling and boundary edges (numpy + scipy only).
 
-``MeshProjector`` finds, for query points, the closest point on a triangle mesh: a
-KD-tree over triangle centroids proposes ``k`` candidate triangles, and the exact
-point-triangle closest point (Ericson, *Real-Time Collision Detection*, 5.1.5) picks
-the best. With ``k`` large enough for the mesh's triangle sizes it is exact; the
-default is generous for the near-uniform meshes used here.
+``MeshProjector`` finds, for query points, the exact closest point on a triangle mesh of
+any triangle sizes: a KD-tree over proxy points (triangle centroids, large triangles
+subdivided) proposes candidate triangles, the exact point-triangle closest point (Ericson,
+*Real-Time Collision Detection*, 5.1.5) picks the best, and a distance certificate sends
+the few points it cannot vouch for to an exhaustive search of the ball that must hold the
+answer.
 """
 from __future__ import annotations
 
@@ -73,18 +74,62 @@ class Projection(NamedTuple):
     on_boundary: np.ndarray  # (N,) bool: closest point lies on an open-boundary edge
 
 
-class MeshProjector:
-    """Closest points on a fixed triangle mesh ``(vertices (V,3), faces (F,3))``."""
+def _proxies(tri: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points standing in for the triangles ``tri (F, 3, 3)`` in a KD-tree: (points (P, 3), face (P,)).
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 16):
+    A triangle whose centroid-to-corner distance ``r`` is at most ``radius`` is its centroid;
+    a larger one is split into ``m^2`` similar sub-triangles (``m = ceil(r / radius)``, the
+    regular ``m``-subdivision) and stands in as their centroids. Every point of a triangle
+    then lies within ``radius`` of one of its proxies.
+    """
+    centroid = tri.mean(1)
+    r = np.linalg.norm(tri - centroid[:, None], axis=2).max(1)
+    m = np.maximum(np.ceil(r / radius - 1e-9), 1).astype(np.int64)
+    points, face = [centroid[m == 1]], [np.flatnonzero(m == 1)]
+    for mm in np.unique(m[m > 1]):
+        f = np.flatnonzero(m == mm)
+        i, j = np.meshgrid(np.arange(mm), np.arange(mm), indexing="ij")
+        up = (i + j <= mm - 1).ravel()
+        down = (i + j <= mm - 2).ravel()
+        # barycentric (w1, w2) of the sub-triangle centroids: "up" ones and inverted ones
+        w = np.concatenate([np.stack([i.ravel()[up] + 1 / 3, j.ravel()[up] + 1 / 3], 1),
+                            np.stack([i.ravel()[down] + 2 / 3, j.ravel()[down] + 2 / 3], 1)]) / mm
+        t = tri[f]  # (n, 3, 3)
+        pts = t[:, None, 0] + w[None, :, :1] * (t[:, None, 1] - t[:, None, 0]) + w[None, :, 1:] * (t[:, None, 2] - t[:, None, 0])
+        points.append(pts.reshape(-1, 3))
+        face.append(np.repeat(f, len(w)))
+    return np.concatenate(points), np.concatenate(face)
+
+
+class MeshProjector:
+    """Exact closest points on a fixed triangle mesh ``(vertices (V,3), faces (F,3))``.
+
+    A KD-tree over proxy points (:func:`_proxies`: each triangle's centroid, or the
+    centroids of a subdivision of a large triangle, so every proxy stands for a piece of
+    radius at most ``self.radius``) proposes the triangles of the ``k`` nearest proxies, and
+    the exact point-triangle closest point (Ericson, *Real-Time Collision Detection*,
+    5.1.5) picks the best, at distance ``d``. The answer is certified: a triangle that is
+    not a candidate lies farther than ``k``-th proxy distance minus ``radius``. Points whose
+    certificate fails (meshes with very different triangle sizes, queries far from the
+    surface) are redone over every triangle with a proxy within ``d + radius``. So the
+    result is exact for any mesh, not only near-uniform ones.
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 8, max_proxies: int | None = None):
         self.vertices = np.asarray(vertices, np.float64)
         self.faces = np.asarray(faces, np.int64)
-        self.k = int(min(k, len(self.faces)))
         tri = self.vertices[self.faces]
-        centroid = tri.mean(1)
-        self.tree = cKDTree(centroid)
-        #: largest centroid-to-corner distance: a point within d of a face is within d + this of its centroid
-        self.radius = float(np.linalg.norm(tri - centroid[:, None], axis=2).max()) if len(tri) else 0.0
+        r = np.linalg.norm(tri - tri.mean(1)[:, None], axis=2).max(1) if len(tri) else np.zeros(0)
+        #: every point of a triangle lies within this of one of its proxies: half the median
+        #: triangle's radius (measured fastest), coarser if a few huge triangles would need
+        #: more than ``max_proxies`` (default 4 per triangle, at least 10^6)
+        self.radius = float(max(0.5 * np.median(r), 1e-12 * max(r.max(), 1e-300))) if len(r) else 0.0
+        budget = max_proxies or max(4 * len(r), 1_000_000)
+        while len(r) and (np.maximum(np.ceil(r / self.radius), 1) ** 2).sum() > budget:
+            self.radius *= 1.5
+        proxy, self._proxy_face = _proxies(tri, self.radius) if len(tri) else (np.zeros((0, 3)), np.zeros(0, np.int64))
+        self.tree = cKDTree(proxy)
+        self.k = int(min(k, len(proxy)))
         keys = edge_keys(np.arange(len(self.vertices)), self.faces)
         # boundary[f, i]: the edge opposite corner i of face f is used by one face only
         open_edge = (edge_use_counts(keys) == 1).reshape(-1, 3)  # edge j joins corners j, j+1
@@ -101,22 +146,66 @@ class MeshProjector:
 
     def _project(self, p: np.ndarray, max_distance: float | None):
         n, k = len(p), self.k
-        empty = (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, bool))
-        if n == 0:
-            return empty
-        if max_distance is not None:
-            _, cand = self.tree.query(p, k=k, distance_upper_bound=max_distance + self.radius)
-            cand = cand.reshape(n, k)
-            near = cand[:, 0] < len(self.faces)
-            out = (np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1), np.zeros((n, 3)), np.zeros(n, bool))
-            if near.any():
-                sub = self._exact(p[near], np.where(cand[near] < len(self.faces), cand[near], cand[near][:, :1]))
-                for o, v in zip(out, sub):
-                    o[near] = v
-                out[1][near & (out[1] > max_distance)] = np.inf
+        out = (np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1), np.zeros((n, 3)), np.zeros(n, bool))
+        if n == 0 or k == 0:
             return out
-        _, cand = self.tree.query(p, k=k)
-        return self._exact(p, cand.reshape(n, k))
+        bound = np.inf if max_distance is None else max_distance + self.radius
+        dist, cand = self.tree.query(p, k=k, distance_upper_bound=bound)
+        dist, cand = dist.reshape(n, k), cand.reshape(n, k)
+        near = np.isfinite(dist[:, 0])  # else: no triangle within max_distance
+        if not near.any():
+            return out
+        faces = self._proxy_face[np.where(np.isfinite(dist), cand, cand[:, :1])[near]]
+        sub = self._exact(p[near], faces)
+        for o, v in zip(out, sub):
+            o[near] = v
+        # certificate: a triangle without a proxy among the k lies beyond dist[:, -1] - radius
+        idx = np.flatnonzero(near)
+        redo = idx[dist[near, -1] - self.radius < out[1][near]]
+        if len(redo):
+            self._redo(p, redo, out)
+        if max_distance is not None:
+            far = out[1] > max_distance
+            out[1][far], out[2][far] = np.inf, -1
+        return out
+
+    def _ball_pairs(self, points: np.ndarray, radius: np.ndarray, budget: int = 4_000_000):
+        """Batches of ``(i, face)``: each triangle with a proxy within ``radius[i] + self.radius``
+        of ``points[i]`` (so every triangle within ``radius[i]``), once per point; a batch
+        holds at most about ``budget`` proxies."""
+        r = radius + self.radius
+        size = self.tree.query_ball_point(points, r, return_length=True, workers=-1)
+        batch = np.cumsum(size) // budget
+        for b in np.unique(batch):
+            sel = np.flatnonzero(batch == b)
+            balls = self.tree.query_ball_point(points[sel], r[sel], workers=-1)
+            face = self._proxy_face[np.concatenate(balls).astype(np.int64)]
+            pair = np.unique(np.repeat(sel, size[sel]) * len(self.faces) + face)  # grouped by point
+            yield pair // len(self.faces), pair % len(self.faces)
+
+    def faces_within(self, points: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every (point index, triangle, exact distance) with the triangle within ``radius``
+        (scalar or per point) of the point."""
+        points = np.asarray(points, np.float64)
+        radius = np.broadcast_to(np.asarray(radius, np.float64), (len(points),))
+        out = [(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))]
+        if len(points) and len(self.faces):
+            for i, face in self._ball_pairs(points, radius):
+                d = self._exact(points[i], face[:, None])[1]
+                keep = d <= radius[i]
+                out.append((i[keep], face[keep], d[keep]))
+        return tuple(np.concatenate(x) for x in zip(*out))
+
+    def _redo(self, p: np.ndarray, redo: np.ndarray, out: tuple) -> None:
+        """Exhaustive search, in place, for the points ``redo``: every triangle with a proxy
+        within (current distance + radius) of the point (that ball holds the answer)."""
+        for point, face in self._ball_pairs(p[redo], out[1][redo]):
+            q, d, f, bary, ob = self._exact(p[redo[point]], face[:, None])
+            first = np.lexsort((d, point))
+            first = first[np.r_[True, point[first][1:] != point[first][:-1]]]  # nearest per point
+            i = redo[point[first]]
+            for o, v in zip(out, (q, d, f, bary, ob)):
+                o[i] = v[first]
 
     def _exact(self, p: np.ndarray, cand: np.ndarray):
         n, k = cand.shape
@@ -156,17 +245,38 @@ def boundary_segments(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return vertices[half_edges(faces)[open_]]
 
 
-def distance_to_segments(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """(N,) distance from each point to the nearest of ``segments (S, 2, 3)`` (inf if S = 0)."""
+def distance_to_segments(points: np.ndarray, segments: np.ndarray, k: int = 8) -> np.ndarray:
+    """(N,) exact distance from each point to the nearest of ``segments (S, 2, 3)`` (inf if S = 0).
+
+    As in :class:`MeshProjector`: a KD-tree over proxies (midpoints of the segments, long
+    ones cut into pieces no longer than the median segment), ``k`` candidates, and an
+    exhaustive ball search for the points whose distance certificate fails.
+    """
     points = np.asarray(points, np.float64)
+    segments = np.asarray(segments, np.float64)
     if len(segments) == 0:
         return np.full(len(points), np.inf)
-    mid = segments.mean(1)
-    k = min(8, len(segments))
-    _, cand = cKDTree(mid).query(points, k=k)
-    cand = cand.reshape(len(points), k)
-    a, b = segments[cand, 0], segments[cand, 1]  # (N, k, 3)
-    ab = b - a
-    t = ((points[:, None] - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300)
-    q = a + np.clip(t, 0, 1)[..., None] * ab
-    return np.linalg.norm(points[:, None] - q, axis=-1).min(1)
+    a, b = segments[:, 0], segments[:, 1]
+    length = np.linalg.norm(b - a, axis=1)
+    step = max(float(np.median(length)), 1e-12 * max(float(length.max()), 1e-300))
+    while (np.ceil(length / step)).sum() > max(4 * len(length), 1_000_000):
+        step *= 1.5
+    pieces = np.maximum(np.ceil(length / step - 1e-9), 1).astype(np.int64)
+    seg = np.repeat(np.arange(len(segments)), pieces)
+    t = (np.arange(len(seg)) - np.repeat(np.cumsum(pieces) - pieces, pieces) + 0.5) / pieces[seg]
+    tree = cKDTree(a[seg] + t[:, None] * (b - a)[seg])
+    radius = 0.5 * float((length / pieces).max())  # every point of a segment is this close to a proxy
+
+    def dist(p, s):
+        ab = b[s] - a[s]
+        u = np.clip(((p - a[s]) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0, 1)
+        return np.linalg.norm(p - (a[s] + u[..., None] * ab), axis=-1)
+
+    k = min(k, len(seg))
+    pd, cand = tree.query(points, k=k)
+    pd, cand = pd.reshape(len(points), k), cand.reshape(len(points), k)
+    out = dist(points[:, None], seg[cand]).min(1)
+    for i in np.flatnonzero(pd[:, -1] - radius < out):  # not certified: every segment in the ball
+        near = np.unique(seg[tree.query_ball_point(points[i], out[i] + radius)])
+        out[i] = dist(points[i][None], near).min()
+    return out

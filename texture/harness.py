@@ -19,7 +19,13 @@ Summary keys (example values for xatlas on the bunny in docs/texture.md):
                        reference normal, against their island's majority (by 3D area).
                        Reference = the reference surface's (vertex-interpolated) normal at
                        the closest point when ``reference`` is given, else the island's
-                       own area-weighted vertex normals.
+                       own area-weighted vertex normals. With a reference, such a face is
+                       *undecided*, not folded, when a reference facet within ``FOLD_TOL``
+                       (1 % of the diameter) beyond its closest distance faces its way:
+                       where the reference has both orientations that close (the two sides
+                       of a thin part, touching parts, the far side of a sharp crease) the
+                       orientation is not determined at the fit's resolution.
+``orientation_undecided_area_percent`` the 3D area of those faces.
 ``uv_overlap_percent`` texels of ``resolution^2`` covered by >= 2 faces, percent of
                        covered texels (UV bounding box mapped to the square if UVs leave
                        [0,1]^2).
@@ -47,6 +53,9 @@ RESOLUTION = 1024
 #: distance (unit-ball frame, 1 % of the diameter) within which an island border counts
 #: as lying on the reference surface's open boundary rather than being a seam.
 BOUNDARY_TOL = 0.02
+#: the same 1 % of the diameter: a face whose normal opposes the reference is still not
+#: folded if a reference facet within this beyond the closest point faces its way.
+FOLD_TOL = 0.02
 
 
 def per_face_distortions(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> dict[str, np.ndarray]:
@@ -127,7 +136,18 @@ def _smoothed_normals(mesh: UVMesh, geom: FaceGeometry, island: np.ndarray, weld
     return acc[inv].reshape(-1, 3, 3).sum(1)
 
 
-def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> np.ndarray:
+def facet_normals(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(F, 3) unit normals of the planes of ``faces``, each turned to the side of the mean
+    of its vertex ``normals`` (the reference's own idea of outside, whatever its winding)."""
+    t = vertices[faces]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n *= np.where((n * normals[faces].sum(1)).sum(1) < 0, -1.0, 1.0)[:, None]
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> tuple[np.ndarray, np.ndarray]:
+    """(folded, undecided) per face; see the module docstring."""
+    undecided = np.zeros(len(geom.area_3d), bool)
     if reference is not None:
         centroid = mesh.vertices[mesh.faces].mean(1)
         proj = reference.project(centroid)
@@ -137,7 +157,16 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> np.nda
         ref_n = _smoothed_normals(mesh, geom, island, weld)
     dot = (geom.normal * ref_n).sum(1)
     sign = np.where(geom.area_3d > 0, np.sign(dot), 0.0)
-    return _majority_disagrees(sign, geom.area_3d, island)
+    against = _majority_disagrees(sign, geom.area_3d, island)
+    if reference is not None and against.any():
+        # undecided: a reference facet within FOLD_TOL beyond the closest point faces the
+        # face's way (a thin part's other side, touching parts, the far side of a crease)
+        idx = np.flatnonzero(against)
+        i, f, _ = reference.faces_within(centroid[idx], proj.distance[idx] + FOLD_TOL)
+        facet = facet_normals(reference.vertices, reference.faces[f], reference.normals)
+        supports = np.sign((facet * geom.normal[idx[i]]).sum(1)) == -sign[idx[i]]
+        undecided[idx[np.unique(i[supports])]] = True
+    return against & ~undecided, undecided
 
 
 def _seam_length(mesh: UVMesh, weld: np.ndarray, surface_boundary: np.ndarray | None) -> float:
@@ -206,7 +235,7 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     elif reference_is_closed:
         boundary = np.zeros((0, 2, 3))
     flipped = _flipped(geom, island)
-    folded = _folded(m, geom, island, weld, projector)
+    folded, undecided = _folded(m, geom, island, weld, projector)
     total_area = float(geom.area_3d.sum())
     tex_uv, inside = _texture_space(m.uv)
     count = coverage_count(tex_uv[m.faces], resolution, resolution)
@@ -222,6 +251,7 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
         "flipped_area_percent": 100.0 * float(geom.area_3d[flipped].sum()) / total_area,
         "folded_faces": int(folded.sum()),
         "folded_area_percent": 100.0 * float(geom.area_3d[folded].sum()) / total_area,
+        "orientation_undecided_area_percent": 100.0 * float(geom.area_3d[undecided].sum()) / total_area,
         "uv_overlap_percent": 100.0 * int((count > 1).sum()) / max(covered, 1),
         "utilization": covered / float(resolution * resolution) if inside else float("nan"),
         "uv_inside_unit_square": inside,

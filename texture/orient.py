@@ -23,6 +23,13 @@ budget (a speck of hole is no worse than a speck turned inside out, which a rend
 culls back faces does not draw either); the rest are kept with their surroundings (the
 field is overridden there and the cut redone). A whole small island of one sign is
 reoriented as a whole. What is left folded, and what was dropped, is reported.
+
+Undecided orientation: where a reference facet within ``FOLD_TOL`` beyond the closest
+point faces against the closest normal (the two sides of a thin part, touching parts),
+the harness calls a face's orientation undecided, not folded. Here such places still
+follow the closest normal (the nearer side is the better guess), but a fragment lying
+mostly there is kept with its surroundings and spends none of the drop budget, and the
+folded areas in the stats leave them out.
 """
 from __future__ import annotations
 
@@ -32,6 +39,7 @@ import numpy as np
 
 from .clip import clip_mesh
 from .geometry import MeshProjector
+from .harness import FOLD_TOL, facet_normals
 from .islands import uv_islands
 from .trim import Piece
 
@@ -61,6 +69,16 @@ class Reference:
         n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         return (n, proj.distance) if with_distance else n
 
+    def undecided(self, points: np.ndarray, normal: np.ndarray, distance: np.ndarray) -> np.ndarray:
+        """(N,) bool: a reference facet within ``distance + FOLD_TOL`` of the point faces
+        against its closest reference ``normal`` (the harness's undecided orientation: the
+        two sides of a thin part, touching parts)."""
+        out = np.zeros(len(points), bool)
+        i, f, _ = self.projector.faces_within(points, distance + FOLD_TOL)
+        facet = facet_normals(self.projector.vertices, self.projector.faces[f], self.normals)
+        out[np.unique(i[(facet * normal[i]).sum(1) < -UNDECIDED_COS])] = True
+        return out
+
 
 def face_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F, 3) area-weighted (unnormalised, length = 2 * area) face normals."""
@@ -80,6 +98,8 @@ def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
 #: farther than this from the reference (unit-ball frame, 1 % of the diameter: the F-score
 #: threshold) a chart is not on the surface and the reference says nothing about its orientation
 NEAR = 0.02
+#: a reference facet this much against the closest normal (cosine) makes the orientation undecided
+UNDECIDED_COS = 0.1
 
 
 def folded_area(piece: Piece, reference: Reference) -> float:
@@ -93,25 +113,28 @@ def folded_area(piece: Piece, reference: Reference) -> float:
 
 
 class _Part(NamedTuple):
-    """A piece with, per vertex, the reference normal (3) and distance (1) at its closest point.
+    """A piece with, per vertex, the reference normal (3) and distance (1) at its closest
+    point, and 1 where the reference's orientation is undecided there (0 elsewhere).
 
     Clipping interpolates them like any attribute, so the reference is projected once per
     piece, not again for every sub-triangle the cuts make.
     """
 
     piece: Piece
-    ref: np.ndarray  # (V, 4)
+    ref: np.ndarray  # (V, 5)
 
     @classmethod
     def of(cls, piece: Piece, reference: Reference) -> "_Part":
         n, d = reference.normal_at(piece.xyz, with_distance=True)
-        return cls(piece, np.column_stack([n, d]))
+        return cls(piece, np.column_stack([n, d, reference.undecided(piece.xyz, n, d)]))
 
     def face_signs(self) -> np.ndarray:
-        """(F,) +1 / -1: face normal with / against the reference; 0 off the surface or degenerate."""
+        """(F,) +1 / -1: face normal with / against the reference; 0 off the surface,
+        undecided or degenerate."""
         p = self.piece
         r = self.ref[p.faces].mean(1)
-        return np.where(r[:, 3] <= NEAR, np.sign((face_normals(p.xyz, p.faces) * r[:, :3]).sum(1)), 0.0)
+        decided = (r[:, 3] <= NEAR) & (r[:, 4] < 0.5)
+        return np.where(decided, np.sign((face_normals(p.xyz, p.faces) * r[:, :3]).sum(1)), 0.0)
 
     def folded(self) -> float:
         """Area facing against the reference."""
@@ -124,7 +147,7 @@ class _Part(NamedTuple):
     def clip(self, field: np.ndarray) -> tuple["_Part", np.ndarray]:
         p = self.piece
         c = clip_mesh(np.column_stack([p.xyz, p.uv, self.ref]), p.faces, field)
-        return _Part(Piece(p.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces), c.attrs[:, 5:9]), c.source_vertex
+        return _Part(Piece(p.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces), c.attrs[:, 5:]), c.source_vertex
 
     def keep(self, faces: np.ndarray) -> "_Part":
         """Only the faces where ``faces`` (F,) bool is set; unused vertices removed."""
@@ -202,15 +225,19 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
         parts = [whole.clip(field), whole.clip(-field)]
         fragments = []  # (area, part, faces, source vertices, sign to force)
         for i, ((part, src), s) in enumerate(zip(parts, (-1.0, 1.0))):
+            decided = part.face_signs() != 0
             for faces, area in _small_components(part.piece, min_area):
                 verts = src[np.unique(part.piece.faces[faces])]
                 verts = verts[verts >= 0]
                 if len(verts) and vertex_island_area[verts].max() > area * (1 + 1e-6):
-                    fragments.append((area, i, faces, verts, s))
+                    # a fragment mostly where the orientation is undecided is folded by no
+                    # measure: kept with its surroundings, it spends none of the drop budget
+                    mute = float(part.piece.area()[faces][decided[faces]].sum()) < 0.5 * area
+                    fragments.append((area, i, faces, verts, s, mute))
         keep = [np.ones(len(p.piece.faces), bool) for p, _ in parts]
         dropped, changed = 0.0, False
-        for area, i, faces, verts, s in sorted(fragments, key=lambda f: (f[0], f[1], int(f[2][0]))):
-            if dropped + area <= drop_budget:
+        for area, i, faces, verts, s, mute in sorted(fragments, key=lambda f: (f[0], f[1], int(f[2][0]))):
+            if not mute and dropped + area <= drop_budget:
                 keep[i][faces] = False
                 dropped += area
                 continue

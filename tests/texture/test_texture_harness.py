@@ -208,3 +208,53 @@ def test_xatlas_on_sphere_has_no_flips_or_overlap(icosphere):
     # the welded mesh is closed: every UV border is a seam, none is a surface boundary
     assert s["seam_length"] > 0
     np.testing.assert_allclose(res.mesh.vertices, np.asarray(icosphere.vertices)[res.vmapping])
+
+
+def _stacked_boxes():
+    """Two unit cubes, the second on top of the first: the lower one's top face and the
+    upper one's bottom face lie on each other, with opposite normals (touching parts)."""
+    import trimesh
+
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    V = np.concatenate([box.vertices, box.vertices + [0.0, 0.0, 1.0]])
+    F = np.concatenate([box.faces, box.faces + len(box.vertices)])
+    return V, F, trimesh.Trimesh(V, F, process=False)
+
+
+def test_touching_parts_measured_against_themselves_have_no_folds():
+    V, F, ref = _stacked_boxes()
+    # UVs: each face its own right triangle (one island per face pair is not needed here)
+    m = measure(make_uv_mesh(V, F, V[:, :2] + 0.1 * V[:, 2:]), reference=ref)
+    assert m.summary["folded_faces"] == 0
+    # the touching faces (4 of 24, area 2 of 12) are the only ones that can be undecided
+    assert m.summary["orientation_undecided_area_percent"] <= 100 * 2 / 12 + 1e-9
+    # a really inverted face is still folded: the upper cube's top, one triangle reversed
+    top = np.flatnonzero(np.isclose(V[F][:, :, 2], 1.5).all(1))
+    assert len(top) == 2
+    F2 = F.copy()
+    F2[top[0]] = F2[top[0], ::-1]
+    m2 = measure(make_uv_mesh(V, F2, V[:, :2] + 0.1 * V[:, 2:]), reference=ref)
+    assert np.flatnonzero(m2.folded).tolist() == [top[0]]
+    assert m2.summary["folded_area_percent"] == pytest.approx(100 * 0.5 / 12, rel=1e-9)
+
+
+def test_thin_plate_sheet_between_its_sides_is_undecided_not_folded():
+    import trimesh
+
+    V, F = _sheet(9)
+    V = V - [0.5, 0.5, 0.0]
+    centre = np.linalg.norm(V[F].mean(1)[:, :2], axis=1) < 0.2
+    F = np.where(centre[:, None], F[:, ::-1], F)  # a patch facing down in a sheet facing up
+    area = 0.5 / 64 * centre.sum()
+    # over a plate 0.01 thick (its two sides well within FOLD_TOL of each other), a hair above
+    # its mid-plane: the closest side is the top, but the bottom faces the patch's way
+    plate = trimesh.creation.box((1.0, 1.0, 0.01))
+    m = measure(make_uv_mesh(V + [0, 0, 0.001], F, V[:, :2]), reference=plate)
+    assert m.summary["folded_faces"] == 0
+    assert m.summary["orientation_undecided_area_percent"] == pytest.approx(100 * area, rel=1e-9)
+    # on a block 0.4 thick nothing near faces the patch's way: folded
+    block = trimesh.creation.box((1.0, 1.0, 0.4))
+    m = measure(make_uv_mesh(V + [0, 0, 0.201], F, V[:, :2]), reference=block)
+    assert np.array_equal(m.folded, centre)
+    assert m.summary["folded_area_percent"] == pytest.approx(100 * area, rel=1e-9)
+    assert m.summary["orientation_undecided_area_percent"] == 0.0
