@@ -128,7 +128,7 @@ class MeshProjector:
         while len(r) and (np.maximum(np.ceil(r / self.radius), 1) ** 2).sum() > budget:
             self.radius *= 1.5
         proxy, self._proxy_face = _proxies(tri, self.radius) if len(tri) else (np.zeros((0, 3)), np.zeros(0, np.int64))
-        self.tree = cKDTree(proxy)
+        self.tree = cKDTree(proxy, balanced_tree=False, compact_nodes=False)
         self.k = int(min(k, len(proxy)))
         keys = edge_keys(np.arange(len(self.vertices)), self.faces)
         # boundary[f, i]: the edge opposite corner i of face f is used by one face only
@@ -183,14 +183,18 @@ class MeshProjector:
             pair = np.unique(np.repeat(sel, size[sel]) * len(self.faces) + face)  # grouped by point
             yield pair // len(self.faces), pair % len(self.faces)
 
-    def faces_within(self, points: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def faces_within(self, points: np.ndarray, radius, where=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every (point index, triangle, exact distance) with the triangle within ``radius``
-        (scalar or per point) of the point."""
+        (scalar or per point) of the point; with ``where(i, face) -> bool mask``, only the
+        pairs it keeps (tested before the distances, which cost the most)."""
         points = np.asarray(points, np.float64)
         radius = np.broadcast_to(np.asarray(radius, np.float64), (len(points),))
         out = [(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))]
         if len(points) and len(self.faces):
             for i, face in self._ball_pairs(points, radius):
+                if where is not None:
+                    keep = where(i, face)
+                    i, face = i[keep], face[keep]
                 d = self._exact(points[i], face[:, None])[1]
                 keep = d <= radius[i]
                 out.append((i[keep], face[keep], d[keep]))

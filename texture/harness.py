@@ -162,10 +162,13 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> tuple[
         # undecided: a reference facet within FOLD_TOL beyond the closest point faces the
         # face's way (a thin part's other side, touching parts, the far side of a crease)
         idx = np.flatnonzero(against)
-        i, f, _ = reference.faces_within(centroid[idx], proj.distance[idx] + FOLD_TOL)
-        facet = facet_normals(reference.vertices, reference.faces[f], reference.normals)
-        supports = np.sign((facet * geom.normal[idx[i]]).sum(1)) == -sign[idx[i]]
-        undecided[idx[np.unique(i[supports])]] = True
+        facet = facet_normals(reference.vertices, reference.faces, reference.normals)
+
+        def supports(i, f):
+            return np.sign((facet[f] * geom.normal[idx[i]]).sum(1)) == -sign[idx[i]]
+
+        i, _, _ = reference.faces_within(centroid[idx], proj.distance[idx] + FOLD_TOL, where=supports)
+        undecided[idx[np.unique(i)]] = True
     return against & ~undecided, undecided
 
 

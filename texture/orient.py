@@ -51,6 +51,7 @@ class Reference:
         self.projector = MeshProjector(np.asarray(vertices, np.float64), np.asarray(faces, np.int64))
         n = np.asarray(normals, np.float64)
         self.normals = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        self._facets = None  # unit facet normals, on first use
 
     @classmethod
     def from_trimesh(cls, mesh, normalization) -> "Reference":
@@ -71,12 +72,14 @@ class Reference:
 
     def undecided(self, points: np.ndarray, normal: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """(N,) bool: a reference facet within ``distance + FOLD_TOL`` of the point faces
-        against its closest reference ``normal`` (the harness's undecided orientation: the
+        against its closest reference ``normal``: the harness's undecided orientation (the
         two sides of a thin part, touching parts)."""
         out = np.zeros(len(points), bool)
-        i, f, _ = self.projector.faces_within(points, distance + FOLD_TOL)
-        facet = facet_normals(self.projector.vertices, self.projector.faces[f], self.normals)
-        out[np.unique(i[(facet * normal[i]).sum(1) < -UNDECIDED_COS])] = True
+        if self._facets is None:
+            self._facets = facet_normals(self.projector.vertices, self.projector.faces, self.normals)
+        i, _, _ = self.projector.faces_within(points, distance + FOLD_TOL,
+                                             where=lambda i, f: (self._facets[f] * normal[i]).sum(1) < -UNDECIDED_COS)
+        out[np.unique(i)] = True
         return out
 
 
