@@ -121,8 +121,9 @@ class MeshProjector:
         tri = self.vertices[self.faces]
         r = np.linalg.norm(tri - tri.mean(1)[:, None], axis=2).max(1) if len(tri) else np.zeros(0)
         #: every point of a triangle lies within this of one of its proxies: half the median
-        #: triangle's radius (measured fastest), coarser if a few huge triangles would need
-        #: more than ``max_proxies`` (default 4 per triangle, at least 10^6)
+        #: triangle's radius (measured fastest; a whole median radius builds faster but
+        #: queries slower, no gain overall), coarser if a few huge triangles would need more
+        #: than ``max_proxies`` (default 4 per triangle, at least 10^6)
         self.radius = float(max(0.5 * np.median(r), 1e-12 * max(r.max(), 1e-300))) if len(r) else 0.0
         budget = max_proxies or max(4 * len(r), 1_000_000)
         while len(r) and (np.maximum(np.ceil(r / self.radius), 1) ** 2).sum() > budget:
@@ -161,9 +162,11 @@ class MeshProjector:
             o[near] = v
         # certificate: a triangle without a proxy among the k lies beyond dist[:, -1] - radius
         idx = np.flatnonzero(near)
-        redo = idx[dist[near, -1] - self.radius < out[1][near]]
+        # (with max_distance, a triangle beyond it cannot matter: certified once the rest are)
+        limit = out[1][near] if max_distance is None else np.minimum(out[1][near], max_distance)
+        redo = idx[dist[near, -1] - self.radius < limit]
         if len(redo):
-            self._redo(p, redo, out)
+            self._redo(p, redo, out, max_distance)
         if max_distance is not None:
             far = out[1] > max_distance
             out[1][far], out[2][far] = np.inf, -1
@@ -200,10 +203,12 @@ class MeshProjector:
                 out.append((i[keep], face[keep], d[keep]))
         return tuple(np.concatenate(x) for x in zip(*out))
 
-    def _redo(self, p: np.ndarray, redo: np.ndarray, out: tuple) -> None:
+    def _redo(self, p: np.ndarray, redo: np.ndarray, out: tuple, max_distance: float | None = None) -> None:
         """Exhaustive search, in place, for the points ``redo``: every triangle with a proxy
-        within (current distance + radius) of the point (that ball holds the answer)."""
-        for point, face in self._ball_pairs(p[redo], out[1][redo]):
+        within (current distance, or ``max_distance`` if smaller, + radius) of the point
+        (that ball holds the answer, or shows there is none within ``max_distance``)."""
+        reach = out[1][redo] if max_distance is None else np.minimum(out[1][redo], max_distance)
+        for point, face in self._ball_pairs(p[redo], reach):
             q, d, f, bary, ob = self._exact(p[redo[point]], face[:, None])
             first = np.lexsort((d, point))
             first = first[np.r_[True, point[first][1:] != point[first][:-1]]]  # nearest per point
