@@ -82,7 +82,8 @@ def _row(mesh, r, t_uv, t_total, extra=""):
     bad = r["flipped_area_percent"] + r["folded_area_percent"]
     return (f"| {mesh} | {r['method']} | {r['faces']} | {r['charts']} | {r['seam_length']:.2f} | "
             f"{r['distortion_metric']:.3f} | {r['distortion_conformal']:.3f} | {r['distortion_area']:.3f} | "
-            f"{bad:.2f} | {r.get('orientation_undecided_area_percent', float('nan')):.2f} | {r['uv_overlap_percent']:.2f} | {r['utilization']:.2f} | {t_uv:.1f} | {t_total} | {extra} |")
+            f"{bad:.2f} | {r['orientation_undecided_area_percent']:.2f} | {r['uv_overlap_percent']:.2f} | "
+            f"{r['utilization']:.2f} | {t_uv:.1f} | {t_total} | {extra} |")
 
 
 def targets(mesh: str, ours: dict, xa: dict, export_seconds: float) -> str:
@@ -117,7 +118,8 @@ def section(results: list[dict], args) -> str:
         for r in cmp["methods"][1:]:
             lines.append(_row(res["mesh"], r, r["seconds"], "", ""))
         a = exp["atlas"]
-        lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts | | | | | | | | | | "
+        lines.append(f"| {res['mesh']} | (atlas) | | {a['islands']} islands / {a['charts_used']} charts "
+                     "| | | | | | | | | | "
                      f"| doubly covered {a['doubly_covered_percent']:.2f} % (before {a['doubly_covered_percent_before']:.1f} %),"
                      f" F-score drop {a.get('fscore_drop', float('nan')):.2f}; inside-out before orient "
                      f"{a.get('folded_percent_before_orient', float('nan')):.2f} %, reoriented "

@@ -36,7 +36,8 @@ COLUMNS = (("charts", "charts", "{:d}"), ("seam_length", "seam length", "{:.2f}"
            ("distortion_metric", "distortion metric", "{:.3f}"), ("distortion_conformal", "conformal", "{:.3f}"),
            ("distortion_area", "area", "{:.3f}"), ("flipped_area_percent", "flipped %", "{:.3f}"),
            ("folded_area_percent", "folded %", "{:.3f}"),
-           ("orientation_undecided_area_percent", "undecided %", "{:.3f}"), ("uv_overlap_percent", "overlap %", "{:.3f}"),
+           ("orientation_undecided_area_percent", "undecided %", "{:.3f}"),
+           ("uv_overlap_percent", "overlap %", "{:.3f}"),
            ("utilization", "utilization", "{:.2f}"))
 
 
@@ -131,7 +132,8 @@ def to_markdown(result: dict) -> str:
     parts = [f"# compare: {result['run']}", "",
              "One harness (texture.harness.measure) for every row; unit-ball frame; reference: "
              f"{result['reference']}. Seam length = 3D length of cut edges / sqrt(area); distortions as in DESIGN "
-             "(UV-area weighted); flipped/folded/undecided in % of 3D area (undecided: the input faces both ways within 1 % of the diameter there, see docs/texture.md); time = UV method only (ours: trim + pack).", "",
+             "(UV-area weighted); flipped/folded/undecided in % of 3D area (undecided: the input faces both ways "
+             "within 1 % of the diameter there, see docs/texture.md); time = UV method only (ours: trim + pack).", "",
              table(result["methods"]), "",
              f"Our atlas: {a['islands']} islands from {a['charts_used']} charts, doubly covered "
              f"{a['doubly_covered_percent']:.2f} % of the area (before trimming "

@@ -95,7 +95,8 @@ def _proxies(tri: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
         w = np.concatenate([np.stack([i.ravel()[up] + 1 / 3, j.ravel()[up] + 1 / 3], 1),
                             np.stack([i.ravel()[down] + 2 / 3, j.ravel()[down] + 2 / 3], 1)]) / mm
         t = tri[f]  # (n, 3, 3)
-        pts = t[:, None, 0] + w[None, :, :1] * (t[:, None, 1] - t[:, None, 0]) + w[None, :, 1:] * (t[:, None, 2] - t[:, None, 0])
+        e1, e2 = t[:, None, 1] - t[:, None, 0], t[:, None, 2] - t[:, None, 0]
+        pts = t[:, None, 0] + w[None, :, :1] * e1 + w[None, :, 1:] * e2
         points.append(pts.reshape(-1, 3))
         face.append(np.repeat(f, len(w)))
     return np.concatenate(points), np.concatenate(face)
