@@ -97,6 +97,13 @@ def targets(mesh: str, ours: dict, xa: dict, export_seconds: float) -> str:
     return ", ".join(f"{name} {'yes' if ok else 'NO'}" for name, ok in checks)
 
 
+def _relax_cell(a: dict) -> str:
+    if "relax_energy_before" not in a:
+        return "not relaxed; "
+    return (f"relaxed: energy excess {a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f} "
+            f"({a['relax_iterations_max']} iterations at most, {a['relax_stopped_by_crossing']} stopped by a crossing); ")
+
+
 def section(results: list[dict], args) -> str:
     head = ("| mesh | method | faces | charts | seam length | distortion metric | conformal | area | "
             "flipped+folded % | undecided % | overlap % | utilization | UV time s | total s | targets |")
@@ -105,7 +112,7 @@ def section(results: list[dict], args) -> str:
              f"{args.time_budget:g} s budget; `mna extract --grid {args.grid}`; texture {args.size}², padding 8. "
              "One harness (`texture.harness.measure`, unit-ball frame, input mesh as reference) for every row. "
              "`mna` = our packed atlas; `xatlas` = xatlas (defaults, unit-ball frame) on the *same* reconstructed "
-             "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + orient + pack, xatlas = its "
+             "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + orient + relax + pack, xatlas = its "
              "`generate`; total: ours = export (atlas + texture + write), plus fit and extract for the run.", "",
              f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
              f"load average {os.getloadavg()[0]:.1f} at the end.", "", head, "|" + "---|" * 15]
@@ -124,6 +131,7 @@ def section(results: list[dict], args) -> str:
                      f" F-score drop {a.get('fscore_drop', float('nan')):.2f}; inside-out before orient "
                      f"{a.get('folded_percent_before_orient', float('nan')):.2f} %, reoriented "
                      f"{a.get('reoriented_percent', float('nan')):.2f} %, dropped {a.get('orient_dropped_percent', float('nan')):.3f} %; "
+                     f"{_relax_cell(a)}"
                      f"packing cut: {'yes' if a.get('split_islands') else 'no'} (coarse utilisation "
                      f"{a.get('utilization_coarse_uncut', float('nan')):.2f} uncut, cuts tried "
                      f"{', '.join(f'{u:.2f}' for u in a.get('utilization_coarse_cuts', [])) or 'none'}); "

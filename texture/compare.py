@@ -83,7 +83,7 @@ def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, pa
     rows = []
     m = measure(ours, **harness_kw)
     t = atlas_info["timings"]
-    rows.append(_row("mna", "reconstruction", m.summary, t["atlas_trim"] + t.get("atlas_orient", 0.0) + t["atlas_pack"],
+    rows.append(_row("mna", "reconstruction", m.summary, t["atlas_trim"] + t.get("atlas_orient", 0.0) + t.get("atlas_relax", 0.0) + t["atlas_pack"],
                      {"export_seconds": t["export_total"], "islands": atlas_info["atlas"]["islands"]}))
     opts = XatlasOptions(resolution=size, padding=padding)
     rows.append(_xatlas_row("xatlas", "reconstruction", ours.vertices, ours.faces, opts, run / "xatlas",
@@ -127,18 +127,26 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _relax_sentence(a: dict) -> str:
+    if "relax_energy_before" not in a:
+        return " Islands not relaxed (the charts' own UVs)."
+    return (f" Islands relaxed toward an isometry (SLIM): mean tr g + tr g^-1 - 4 "
+            f"{a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f}, at most "
+            f"{a['relax_iterations_max']} iterations, {a['relax_stopped_by_crossing']} stopped by a border crossing.")
+
+
 def to_markdown(result: dict) -> str:
     a = result["atlas"]
     parts = [f"# compare: {result['run']}", "",
              "One harness (texture.harness.measure) for every row; unit-ball frame; reference: "
              f"{result['reference']}. Seam length = 3D length of cut edges / sqrt(area); distortions as in DESIGN "
              "(UV-area weighted); flipped/folded/undecided in % of 3D area (undecided: the input faces both ways "
-             "within 1 % of the diameter there, see docs/texture.md); time = UV method only (ours: trim + pack).", "",
+             "within 1 % of the diameter there, see docs/texture.md); time = UV method only (ours: trim + orient + relax + pack).", "",
              table(result["methods"]), "",
              f"Our atlas: {a['islands']} islands from {a['charts_used']} charts, doubly covered "
              f"{a['doubly_covered_percent']:.2f} % of the area (before trimming "
-             f"{a['doubly_covered_percent_before']:.1f} %), F-score drop {a.get('fscore_drop', float('nan')):.2f} points.",
-             ""]
+             f"{a['doubly_covered_percent_before']:.1f} %), F-score drop {a.get('fscore_drop', float('nan')):.2f} points."
+             + _relax_sentence(a), ""]
     if result["sweep"]:
         parts += ["## xatlas sweep (max_cost x max_iterations)", "", table(result["sweep"]), ""]
     return "\n".join(parts)

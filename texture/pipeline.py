@@ -16,6 +16,7 @@ from mna.errors import InputError
 
 from .atlas import AtlasConfig, build_atlas
 from .orient import Reference
+from .relax import RelaxConfig
 from .charts import load_charts
 from .export import export_textured
 from .harness import measure
@@ -108,7 +109,8 @@ def make_texture(kind: str, mesh_unit: UVMesh, size: int, padding: int, source=N
 
 
 def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str = 2048, padding: int = 8,
-               square_size: float | None = None, max_islands: int = AtlasConfig.max_islands) -> dict:
+               square_size: float | None = None, max_islands: int = AtlasConfig.max_islands,
+               relax: int = RelaxConfig.iterations) -> dict:
     """Charts of ``RUN/charts.npz`` -> ``RUN/mesh.obj``, ``mesh.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``atlas.json``.
 
     Returns the ``atlas.json`` content: atlas stats (trim, coverage, packing), harness
@@ -118,6 +120,8 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     size = check_size(size)
     if isinstance(padding, bool) or int(padding) != padding or padding < 0:
         raise InputError(f"--padding must be a non-negative integer, got {padding!r}")
+    if isinstance(relax, bool) or not isinstance(relax, (int, np.integer)) or relax < 0:
+        raise InputError(f"--relax must be a non-negative integer (SLIM iterations), got {relax!r}")
     if texture not in TEXTURES:
         raise InputError(f"unknown texture {texture!r}; choose from {', '.join(TEXTURES)}")
     if not run.is_dir():
@@ -135,8 +139,9 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     surface = Reference.from_trimesh(mesh_in, norm) if mesh_in is not None else None
     if int(max_islands) < 0:
         raise InputError(f"--max-islands must be 0 (never cut) or a positive integer, got {max_islands}")
-    atlas = build_atlas(charts, AtlasConfig(resolution=size, padding=int(padding), max_islands=int(max_islands)),
-                        ref, surface)
+    cfg = AtlasConfig(resolution=size, padding=int(padding), max_islands=int(max_islands),
+                      relax=RelaxConfig(iterations=int(relax)))
+    atlas = build_atlas(charts, cfg, ref, surface)
     t1 = time.perf_counter()
     source = None
     if texture == "bake":
@@ -151,7 +156,7 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.stats.pop("timings").items()},
                "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
     timings["export_total"] = t3 - t0
-    result = {"texture": texture, "size": size, "padding": int(padding), "atlas": atlas.stats,
+    result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax), "atlas": atlas.stats,
               "uv_metrics": metrics.summary, "timings": timings, "files": paths}
     write_json(run / "atlas.json", result)
     return result

@@ -23,6 +23,9 @@ def register(subparsers) -> None:
     e.add_argument("--max-islands", type=int, default=6,
                    help="cut the largest island in two when that packs tighter and the atlas keeps at most "
                         "this many islands (default 6; 0 = never cut)")
+    e.add_argument("--relax", default="8", metavar="N",
+                   help="re-flatten every island toward an isometry with at most N SLIM iterations before packing "
+                        "(default 8; 0 = keep the charts' own UVs)")
     e.set_defaults(func=run_export)
 
     u = subparsers.add_parser("uv", help="UV-map any mesh with xatlas and write a textured OBJ/GLB + metrics",
@@ -80,8 +83,9 @@ def run_export(args: argparse.Namespace) -> int:
 
     size = check_size(args.size)
     padding = _int_arg(args.padding, "--padding", 0)
+    relax = _int_arg(args.relax, "--relax", 0)
     r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size,
-                   max_islands=args.max_islands)
+                   max_islands=args.max_islands, relax=relax)
     a, m = r["atlas"], r["uv_metrics"]
     print(f"atlas: {a['islands']} islands from {a['charts_used']} charts, seam length {m['seam_length']:.2f}, "
           f"distortion_metric {m['distortion_metric']:.3f}, utilization {a['utilization']:.2f}, "

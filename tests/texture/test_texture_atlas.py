@@ -6,6 +6,9 @@ import pytest
 from texture_helpers import cap_chart, sphere_charts
 
 from texture.atlas import AtlasConfig, _merge, build_atlas
+from texture.geometry import triangle_areas
+from texture.harness import measure
+from texture.relax import RelaxConfig
 from texture.charts import ChartGrids, load_charts
 from texture.clip import clip_mesh, grid_faces
 from texture.islands import uv_islands
@@ -48,7 +51,6 @@ def test_domain_cut_follows_iso_line_not_staircase():
     polar = np.arccos(np.clip(b[:, 2], -1, 1))
     np.testing.assert_allclose(polar, theta_max, atol=2e-3)  # border vertices on the rim
     # border length: iso-line ~ the rim; whole grid cells (the run's kept mesh) are a staircase
-    from texture.harness import measure
     from texture.uvmesh import make_uv_mesh
 
     ours = measure(make_uv_mesh(piece.xyz, piece.faces, piece.uv), reference_is_closed=True, resolution=64)
@@ -105,7 +107,9 @@ def test_pack_keeps_one_scale_no_overlap_inside_unit_square():
 @pytest.mark.parametrize("max_islands", [0, 6])
 def test_build_atlas_on_synthetic_sphere(sphere_run, max_islands):
     charts = load_charts(sphere_run / "charts.npz")
-    atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2, max_islands=max_islands))
+    # the charts' own UVs (no relaxation), so the packed areas have a closed form below
+    atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2, max_islands=max_islands,
+                                            relax=RelaxConfig(iterations=0)))
     s = atlas.stats
     if max_islands == 0:  # the two caps, trimmed at the equator, one island each
         assert s["islands"] == 2 and s["charts_used"] == 2 and s["split_islands"] == 0
@@ -128,6 +132,34 @@ def test_build_atlas_on_synthetic_sphere(sphere_run, max_islands):
     expected = s["uv_scale"] ** 2 * np.pi * (90 / 105) ** 2
     for k in range(2):
         assert per_face[atlas.chart == k].sum() == pytest.approx(expected, rel=0.01)
+
+
+def test_relaxed_sphere_atlas_keeps_one_scale_and_lowers_distortion(sphere_run):
+    """Relaxed (the default): each hemisphere is re-flattened toward an isometry at one shared
+    scale, so the two mirror-image caps keep equal UV areas and texel densities, no face flips,
+    and the distortion drops."""
+    charts = load_charts(sphere_run / "charts.npz")
+    cfg = dict(resolution=256, padding=2, max_islands=0)
+    raw = build_atlas(charts, AtlasConfig(**cfg, relax=RelaxConfig(iterations=0)))
+    relaxed = build_atlas(charts, AtlasConfig(**cfg))
+    s = relaxed.stats
+    assert s["islands"] == 2 and s["relax_stopped_by_crossing"] == 0 and s["relax_iterations_max"] >= 1
+    # a hemisphere cannot be flattened isometrically: the azimuthal-equidistant charts are close
+    # to the best already, and each iteration kept gained at least min_gain
+    assert s["relax_energy_after"] <= s["relax_energy_before"] - RelaxConfig().min_gain
+    d_raw = measure(raw.mesh).summary["distortion_metric"]
+    d_relaxed = measure(relaxed.mesh).summary["distortion_metric"]
+    assert d_relaxed < d_raw - RelaxConfig().min_gain
+    per_face = np.abs(_uv_area(relaxed.mesh.uv, relaxed.mesh.faces))
+    caps = [per_face[relaxed.chart == k].sum() for k in range(2)]
+    assert caps[0] == pytest.approx(caps[1], rel=0.01)
+    # one texel density: UV area per 3D area is the same on both caps, and no face flipped
+    area3d = triangle_areas(relaxed.mesh.vertices, relaxed.mesh.faces)
+    density = [caps[k] / area3d[relaxed.chart == k].sum() for k in range(2)]
+    assert density[0] == pytest.approx(density[1], rel=0.01)
+    signs = [np.sign(_uv_area(m.mesh.uv, m.mesh.faces)) for m in (raw, relaxed)]
+    for k in range(2):  # each island keeps one orientation
+        assert len(np.unique(signs[1][relaxed.chart == k])) == 1
 
 
 def test_sphere_charts_fixture_is_consistent():

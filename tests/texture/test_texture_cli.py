@@ -109,6 +109,27 @@ def test_export_bad_size(fresh_sphere_run, capsys, size):
     assert _files(fresh_sphere_run) == before
 
 
+@pytest.mark.parametrize("relax", ["-1", "abc", "2.5"])
+def test_export_bad_relax(fresh_sphere_run, capsys, relax):
+    before = _files(fresh_sphere_run)
+    code = main(["export", str(fresh_sphere_run), f"--relax={relax}"])
+    assert "--relax must be an integer >= 0" in _one_error_line(capsys, code)
+    assert _files(fresh_sphere_run) == before
+
+
+def test_export_without_relax_keeps_chart_uvs(fresh_sphere_run):
+    """--relax 0: the packed UVs are the charts' own up to one scale; the default relaxes them."""
+    run = fresh_sphere_run
+    assert main(["export", str(run), "--size", "256", "--padding", "2", "--max-islands", "0", "--relax", "0"]) == 0
+    raw = json.loads((run / "atlas.json").read_text())
+    assert raw["relax"] == 0 and "relax_energy_before" not in raw["atlas"]
+    assert main(["export", str(run), "--size", "256", "--padding", "2", "--max-islands", "0"]) == 0
+    relaxed = json.loads((run / "atlas.json").read_text())
+    assert relaxed["relax"] == 8 and relaxed["atlas"]["relax_iterations_max"] >= 1
+    assert relaxed["uv_metrics"]["distortion_metric"] < raw["uv_metrics"]["distortion_metric"]
+    assert relaxed["uv_metrics"]["flipped_faces"] == 0 and relaxed["uv_metrics"]["uv_overlap_percent"] == 0.0
+
+
 def test_export_missing_charts(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     code = main(["export", str(tmp_path / "run")])

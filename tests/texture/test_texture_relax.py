@@ -1,0 +1,142 @@
+"""texture.relax: SLIM toward an isometry, one shared scale, no flips, no border crossings."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from texture.clip import grid_faces
+from texture.raster import coverage_count
+from texture.relax import (RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island,
+                           relax_islands)
+
+
+def _signed_areas(uv, faces):
+    t = uv[faces]
+    return 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+                  - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+
+
+def _edge_lengths(x, faces):
+    return np.linalg.norm(x[np.roll(faces, -1, 1)] - x[faces], axis=-1).ravel()
+
+
+def _cylinder(nu=25, nv=9, angle=np.pi, height=1.0):
+    """Half cylinder of radius 1 as a grid; UV (theta, z): stretched around, exact along z."""
+    th, z = np.meshgrid(np.linspace(0, angle, nu), np.linspace(0, height, nv), indexing="xy")
+    xyz = np.column_stack([np.cos(th.ravel()), np.sin(th.ravel()), z.ravel()])
+    return xyz, np.column_stack([th.ravel(), z.ravel()]), _grid(nu, nv)
+
+
+def _grid(nu, nv):
+    """Faces of an nu (x) by nv (y) vertex grid, counter-clockwise in (x, y)."""
+    i, j = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1), indexing="xy")
+    a = (j * nu + i).ravel()
+    return np.concatenate([np.column_stack([a, a + 1, a + nu + 1]), np.column_stack([a, a + nu + 1, a + nu])])
+
+
+def test_stretched_cylinder_energy_matches_closed_form():
+    # the flat triangles have chords, not arcs: around, a step dtheta in UV spans the chord
+    # 2 sin(dtheta/2); with UV u = 0.3 theta the map UV -> 3D stretches by c = chord / (0.3 dtheta)
+    nu = 25
+    xyz, uv, faces = _cylinder(nu)
+    dth = np.pi / (nu - 1)
+    c = 2 * np.sin(dth / 2) / (0.3 * dth)
+    uv = uv * [0.3, 1.0]
+    # singular values c and 1 on every face: tr g + tr g^-1 - 4 = c^2 + 1/c^2 - 2
+    assert energy_excess(xyz, uv, faces) == pytest.approx(c**2 + 1 / c**2 - 2, rel=1e-9)
+
+
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_relax_unrolls_a_developable_surface_isometrically(mirrored):
+    xyz, uv, faces = _cylinder()
+    uv = uv * [0.3, 1.0]  # 3.3x stretched around the cylinder
+    if mirrored:  # a clockwise island must come back clockwise, and just as flat
+        uv = uv * [-1.0, 1.0]
+    r = relax_island(xyz, uv, faces, RelaxConfig(iterations=30, min_gain=1e-6))
+    assert r.excess_before > 5.0 and r.excess_after < 1e-4 and not r.stopped_by_crossing
+    # an unrolled cylinder: every UV edge as long as its 3D edge, areas equal, orientation kept
+    np.testing.assert_allclose(_edge_lengths(r.uv, faces), _edge_lengths(xyz, faces), rtol=5e-3)
+    sign = np.sign(_signed_areas(r.uv, faces))
+    assert (sign == (-1 if mirrored else 1)).all()
+
+
+def test_islands_share_one_scale():
+    """Two flat unit squares with UVs at scales 1 and 3: relaxed, both map at the *one* global
+    isometric scale (UV area / 3D area = 1 / s^2 with s^2 = total 3D / total UV area = 2 / 10)."""
+    g = 9
+    lin = np.linspace(0, 1, g)
+    x, y = np.meshgrid(lin, lin, indexing="xy")
+    sq = np.column_stack([x.ravel(), y.ravel(), np.zeros(g * g)])
+    xyz = np.concatenate([sq, sq + [2.0, 0, 0]])
+    f = grid_faces(g)
+    faces = np.concatenate([f, f + g * g])
+    uv = np.concatenate([sq[:, :2], 3 * sq[:, :2] + [5.0, 0]])
+    island = np.repeat([0, 1], len(f))
+    out, stats = relax_islands(xyz, uv, faces, island, RelaxConfig(iterations=20, min_gain=1e-8))
+    assert stats["islands"] == 2 and stats["energy_after"] < 1e-6
+    ratio = np.abs(_signed_areas(out, faces)) / (0.5 / (g - 1) ** 2)
+    np.testing.assert_allclose(ratio, 10 / 2, rtol=1e-4)
+
+
+def _saddle_cone(nu=72, nv=8, a=0.5, r0=0.1, alpha=0.95):
+    """A cone with a 3-fold saddle, z = a r sin(3 phi), cut open along phi = 0: developable, with
+    a cone angle of about 1.25 turns, so its isometric flattening overlaps itself. Its UVs: the
+    polar map with angles scaled by ``alpha`` (a slit open by 5 %, injective)."""
+    ph, r = np.meshgrid(np.linspace(0, 2 * np.pi, nu), np.linspace(r0, 1.0, nv), indexing="xy")
+    ph, r = ph.ravel(), r.ravel()
+    xyz = np.column_stack([r * np.cos(ph), r * np.sin(ph), a * r * np.sin(3 * ph)])
+    uv = np.column_stack([r * np.cos(alpha * ph), r * np.sin(alpha * ph)])
+    return xyz, uv, _grid(nu, nv)
+
+
+def _overlap_texels(uv, faces, res=400):
+    t = uv[faces]
+    lo, hi = t.reshape(-1, 2).min(0), t.reshape(-1, 2).max(0)
+    return int((coverage_count((t - lo) / (hi - lo).max(), res, res) >= 2).sum())
+
+
+def test_border_crossings_are_prevented():
+    xyz, uv, faces = _saddle_cone()
+    assert len(crossing_edges(faces, uv)) == 0 and _overlap_texels(uv, faces) == 0
+    cfg = RelaxConfig(iterations=10, min_gain=1e-7)
+    free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
+    # SLIM alone closes the slit and runs on: the flattened cone overlaps itself (rasterised too)
+    assert len(crossing_edges(faces, free.uv)) > 0 and _overlap_texels(free.uv, faces) > 0
+    kept = relax_island(xyz, uv, faces, cfg)
+    assert len(crossing_edges(faces, kept.uv)) == 0 and _overlap_texels(kept.uv, faces) == 0
+    assert kept.excess_after < 0.1 * kept.excess_before  # pinning the slit still lets the rest relax
+    assert (np.sign(_signed_areas(kept.uv, faces)) == np.sign(_signed_areas(uv, faces))).all()
+
+
+def _brute_force_crossings(edges, uv):
+    count = 0
+    for i in range(len(edges)):
+        for j in range(i + 1, len(edges)):
+            if set(edges[i]) & set(edges[j]):
+                continue
+            p, p2 = uv[edges[i, 0]], uv[edges[i, 1]]
+            q, q2 = uv[edges[j, 0]], uv[edges[j, 1]]
+
+            def side(a, b, c):
+                return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+
+            if side(p, p2, q) * side(p, p2, q2) <= 0 and side(q, q2, p) * side(q, q2, p2) <= 0:
+                count += 1
+    return count
+
+
+def test_crossing_edges_match_brute_force():
+    rng = np.random.default_rng(3)
+    faces = np.arange(3 * 40).reshape(-1, 3)  # 40 separate triangles: every edge is a border edge
+    centres = rng.uniform(0, 4, (40, 1, 2))
+    uv = (centres + rng.uniform(-0.4, 0.4, (40, 3, 2))).reshape(-1, 2)
+    got = len(crossing_edges(faces, uv))
+    assert got == _brute_force_crossings(boundary_edges(faces), uv)
+    assert got > 10  # the random soup does overlap
+
+
+def test_boundary_edges_of_a_grid():
+    g = 6
+    edges = boundary_edges(grid_faces(g))
+    assert len(edges) == 4 * (g - 1)
+    assert len(np.unique(edges)) == 4 * (g - 1)  # the border is one loop through 4 (g - 1) vertices

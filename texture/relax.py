@@ -1,0 +1,251 @@
+"""Relax each island's UVs toward an isometry with SLIM (libigl), keeping every island injective.
+
+The neural charts are fitted with a distortion loss, but a 3-chart fit of a many-part
+shape (the 13-part milk truck) still leaves charts stretched where one chart has to reach
+several parts. Once the charts are cut into islands, each island can be re-flattened on
+its own: SLIM (Rabinovich et al., "Scalable Locally Injective Mappings", 2017; libigl's
+``slim_precompute`` / ``slim_solve``) minimises the symmetric Dirichlet energy
+
+    E = sum_f A_f (tr g_f + tr g_f^-1),     g = J^T J of the map UV -> surface,
+
+from the island's own UVs, with free boundaries. The energy is infinite on a degenerate
+triangle and SLIM's line search never crosses it, so no face flips. What SLIM does not
+prevent is the island's *border* running over itself (global overlap): after every
+iteration each island's boundary edges are tested for crossings, and an island whose
+border crosses goes back to its last crossing-free UVs and stops there.
+
+One texel density for all charts: before relaxing, every island's UVs are scaled by one
+global factor (total UV area = total 3D area, the harness's scale), so SLIM's target, an
+isometry, means the same texel size everywhere; the result is scaled back to chart units.
+Topology, 3D positions, borders and seams are unchanged: only UV positions move.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .distortion_faces import face_geometry
+from .islands import half_edges, uv_islands
+
+
+#: weight of the soft constraints that hold border vertices (libigl's default).
+PIN_WEIGHT = 1e5
+
+
+@dataclass
+class RelaxConfig:
+    """Options of :func:`relax_islands`."""
+
+    iterations: int = 8
+    """Most SLIM iterations per island (0 = no relaxation)."""
+    min_gain: float = 0.005
+    """Stop an island once an iteration lowers its mean energy excess ``E / A - 4`` (about
+    its metric distortion) by less than this; islands already below it are left alone."""
+    pin_rounds: int = 4
+    """Where the border would cross itself, the border vertices near the crossing are held
+    in place (soft constraints) and the iteration is retried, at most this many times per
+    island; after that the island keeps its last crossing-free UVs."""
+    pin_radius: float = 8.0
+    """Border vertices within this many median edge lengths of a crossing are held (the
+    radius doubles with every round)."""
+
+
+def _local_jacobian_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple[float, float]:
+    """(sum over faces of ``A (tr g + tr g^-1)``, sum of ``A``) over faces with a Jacobian."""
+    geom = face_geometry(xyz, faces, uv)
+    v = geom.valid & (geom.area_3d > 0)
+    if not v.any():
+        return np.inf, 0.0
+    J = geom.jac[v]
+    g = np.einsum("fki,fkj->fij", J, J)
+    tr = g[:, 0, 0] + g[:, 1, 1]
+    det = g[:, 0, 0] * g[:, 1, 1] - g[:, 0, 1] * g[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = tr + tr / det  # tr g^-1 = tr g / det g for 2x2
+    a = geom.area_3d[v]
+    if (~geom.valid).any() or not np.isfinite(e).all():
+        return np.inf, float(a.sum())
+    return float((a * e).sum()), float(a.sum())
+
+
+def energy_excess(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float:
+    """3D-area weighted mean of ``tr g + tr g^-1`` minus 4 (0 for an isometry; inf if a face is degenerate)."""
+    e, a = _local_jacobian_energy(xyz, uv, faces)
+    return e / a - 4.0 if a > 0 else np.inf
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """(B, 2) vertex pairs of the edges used by exactly one face (each in its face's direction)."""
+    he = half_edges(np.asarray(faces, np.int64))
+    if len(he) == 0:
+        return he
+    key = he.min(1) * (int(he.max()) + 1) + he.max(1)
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return he[counts[inverse] == 1]
+
+
+def crossing_edges(faces: np.ndarray, uv: np.ndarray, edges: np.ndarray | None = None) -> np.ndarray:
+    """(K, 2, 2) vertex pairs of the boundary edges that cross another boundary edge in UV
+    (one row per crossing pair of edges sharing no vertex).
+
+    For a map that flips no face, the island overlaps itself exactly when its border
+    crosses itself (a touching without crossing counts too: collinear overlaps and an
+    endpoint lying on another edge are crossings here). ``edges``: the boundary edges, if known.
+    """
+    edges = boundary_edges(faces) if edges is None else edges
+    none = np.zeros((0, 2, 2), np.int64)
+    if len(edges) < 2:
+        return none
+    a, b = uv[edges[:, 0]], uv[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    # two segments can only meet if their midpoints lie within the sum of their half lengths
+    tree = cKDTree(0.5 * (a + b))
+    pairs = tree.query_pairs(float(length.max()) * (1.0 + 1e-9) + 1e-300, output_type="ndarray")
+    if len(pairs) == 0:
+        return none
+    i, j = pairs[:, 0], pairs[:, 1]
+    share = (edges[i, 0, None] == edges[j]).any(1) | (edges[i, 1, None] == edges[j]).any(1)
+    i, j = i[~share], j[~share]
+    p, r, q, s = a[i], b[i] - a[i], a[j], b[j] - a[j]
+
+    def cross(u, w):
+        return u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
+
+    d1, d2 = cross(r, q - p), cross(r, q + s - p)  # sides of q, q+s relative to segment i
+    d3, d4 = cross(s, p - q), cross(s, p + r - q)  # sides of p, p+r relative to segment j
+    hit = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    # collinear pairs pass the sign test everywhere on the line: keep those whose extents overlap
+    collinear = (d1 == 0) & (d2 == 0)
+    if collinear.any():
+        rr = np.maximum(np.einsum("ij,ij->i", r, r), 1e-300)
+        t0 = np.einsum("ij,ij->i", q - p, r) / rr
+        t1 = np.einsum("ij,ij->i", q + s - p, r) / rr
+        hit &= ~collinear | ((np.maximum(t0, t1) >= 0) & (np.minimum(t0, t1) <= 1))
+    return np.stack([edges[i[hit]], edges[j[hit]]], 1)
+
+
+def boundary_crossings(faces: np.ndarray, uv: np.ndarray) -> int:
+    """How many pairs of boundary edges (sharing no vertex) cross in UV; see :func:`crossing_edges`."""
+    return len(crossing_edges(faces, uv))
+
+
+@dataclass
+class IslandRelaxation:
+    """What :func:`relax_island` did."""
+
+    uv: np.ndarray
+    iterations: int
+    excess_before: float
+    excess_after: float
+    stopped_by_crossing: bool
+
+
+def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxConfig,
+                 check_crossings: bool = True) -> IslandRelaxation:
+    """SLIM on one connected island (``uv`` in the isometric scale); see the module docstring.
+
+    Returns the input UVs unchanged when they have a degenerate face (infinite energy),
+    when the input border already crosses itself, or when SLIM gives non-finite values.
+    """
+    import igl
+
+    uv = np.asarray(uv, np.float64)
+    before = energy_excess(xyz, uv, faces)
+    result = IslandRelaxation(uv, 0, before, before, False)
+    if cfg.iterations <= 0 or not np.isfinite(before) or before < cfg.min_gain or len(faces) < 2:
+        return result
+    if check_crossings and boundary_crossings(faces, uv):
+        return result
+    # SLIM's local step fits rotations (det > 0): a clockwise island is mirrored in and out
+    mirror = np.array([1.0, -1.0 if face_geometry(xyz, faces, uv).uv_area.sum() < 0 else 1.0])
+    xyz_f = np.asfortranarray(xyz, np.float64)
+    faces_f = np.asfortranarray(faces, np.int32)
+    border_edges = boundary_edges(faces)
+    border = np.unique(border_edges)
+    edge_len = np.linalg.norm(uv[faces[:, 1]] - uv[faces[:, 0]], axis=1)
+    pins = np.zeros(0, np.int64)
+
+    def start(at):
+        return igl.slim_precompute(xyz_f, faces_f, np.asfortranarray(at * mirror), igl.SYMMETRIC_DIRICHLET,
+                                   np.ascontiguousarray(pins, np.int32),
+                                   np.asfortranarray(at[pins] * mirror), PIN_WEIGHT if len(pins) else 0.0)
+
+    data = start(uv)
+    current, excess, it, rounds = uv, before, 0, 0
+    while it < cfg.iterations:
+        nxt = np.array(igl.slim_solve(data, 1)[:, :2], np.float64) * mirror
+        new_excess = energy_excess(xyz, nxt, faces) if np.isfinite(nxt).all() else np.inf
+        if not np.isfinite(new_excess) or new_excess > excess:
+            break
+        crossing = crossing_edges(faces, nxt, border_edges) if check_crossings else np.zeros((0, 2, 2), np.int64)
+        if len(crossing):
+            if rounds >= cfg.pin_rounds:
+                result.stopped_by_crossing = True
+                break
+            # hold the border near the crossings where it is now (crossing-free) and try again
+            rounds += 1
+            radius = cfg.pin_radius * (2 ** (rounds - 1)) * float(np.median(edge_len))
+            near = cKDTree(current[border]).query_ball_point(current[np.unique(crossing)], radius)
+            hit = np.unique(np.concatenate([np.asarray(n, np.int64) for n in near]))
+            pins = np.union1d(pins, border[hit])
+            data = start(current)
+            continue
+        gain = excess - new_excess
+        current, excess = nxt, new_excess
+        it += 1
+        result.iterations = it
+        if gain < cfg.min_gain:
+            break
+    result.uv, result.excess_after = current, excess
+    return result
+
+
+def isometric_scale(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float:
+    """``s`` with ``sum |uv area| * s^2 = sum 3D area`` (the one global scale of every island)."""
+    geom = face_geometry(xyz, faces, uv)
+    uv_total = float(np.abs(geom.uv_area).sum())
+    return float(np.sqrt(geom.area_3d.sum() / uv_total)) if uv_total > 0 else 1.0
+
+
+def relax_islands(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, island: np.ndarray | None = None,
+                  cfg: RelaxConfig | None = None, scale: float | None = None,
+                  check_crossings: bool = True) -> tuple[np.ndarray, dict]:
+    """Relax every island of ``(xyz, uv, faces)``; returns ``(uv, stats)``.
+
+    ``island`` (F,) defaults to the UV islands; islands must not share vertices.
+    ``scale`` (UV units -> isometric) defaults to :func:`isometric_scale` of the whole mesh;
+    pass one scale for several meshes that share a texel density.
+    """
+    cfg = cfg or RelaxConfig()
+    faces = np.asarray(faces, np.int64)
+    if island is None:
+        island = uv_islands(faces, uv)
+    s = isometric_scale(xyz, uv, faces) if scale is None else float(scale)
+    out = np.array(uv, np.float64)
+    stats = {"islands": 0, "iterations": [], "stopped_by_crossing": 0, "energy_before": 0.0,
+             "energy_after": 0.0, "area": 0.0}
+    order = np.argsort(island, kind="stable")
+    bounds = np.searchsorted(island[order], np.arange(int(island.max()) + 2)) if len(island) else [0]
+    for k in range(len(bounds) - 1):
+        fi = order[bounds[k]:bounds[k + 1]]
+        if len(fi) == 0:
+            continue
+        vid, inv = np.unique(faces[fi], return_inverse=True)
+        f = inv.reshape(-1, 3)
+        r = relax_island(xyz[vid], out[vid] * s, f, cfg, check_crossings)
+        out[vid] = r.uv / s
+        area = float(face_geometry(xyz[vid], f, r.uv).area_3d.sum())
+        stats["islands"] += 1
+        stats["iterations"].append(r.iterations)
+        stats["stopped_by_crossing"] += int(r.stopped_by_crossing)
+        if np.isfinite(r.excess_before):
+            stats["energy_before"] += area * r.excess_before
+            stats["energy_after"] += area * r.excess_after
+            stats["area"] += area
+    a = stats["area"]
+    if a > 0:
+        stats["energy_before"] /= a
+        stats["energy_after"] /= a
+    return out, stats
