@@ -100,8 +100,12 @@ def targets(mesh: str, ours: dict, xa: dict, export_seconds: float) -> str:
 def _relax_cell(a: dict) -> str:
     if "relax_energy_before" not in a:
         return "not relaxed; "
-    return (f"relaxed: energy excess {a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f} "
-            f"({a['relax_iterations_max']} iterations at most, {a['relax_stopped_by_crossing']} stopped by a crossing); ")
+    text = (f"relaxed: energy excess {a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f} "
+            f"({a['relax_iterations_max']} iterations at most, {a['relax_stopped_by_crossing']} stopped by a crossing)")
+    if a.get("relax_kept") is False:
+        text += (f", NOT kept (coarse utilisation relaxed {a['utilization_coarse_relaxed']:.2f}, "
+                 f"unrelaxed {a['utilization_coarse_unrelaxed']:.2f})")
+    return text + "; "
 
 
 def section(results: list[dict], args) -> str:

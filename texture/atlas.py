@@ -46,7 +46,9 @@ class AtlasConfig:
     """Cut only when utilisation (coarse packing) rises by at least this much: a cut adds a seam."""
     target_utilization: float = 0.6
     """When neither the uncut islands nor a centroid cut packs this tight (coarse packing),
-    off-centre cuts are packed too: about 8 more coarse searches (a few seconds). 0 = never."""
+    off-centre cuts are packed too: about 8 more coarse searches (a few seconds). And when
+    the relaxed islands' best layout stays below it, the charts' own UVs are laid out too
+    and kept instead if they reach it (``relax_kept``). 0 = never."""
     seed: int = 0
     """Seed of the surface samples used for the coverage check."""
 
@@ -351,9 +353,23 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         total = sum(float(p.area().sum()) for p in pieces)
         pieces, orient_stats = orient_pieces(pieces, reference, cfg.trim.min_island_fraction * total)
     t1 = time.perf_counter()
-    pieces, relax_stats = relax_pieces(pieces, cfg.relax)
+    relaxed, relax_stats = relax_pieces(pieces, cfg.relax)
     t_relax = time.perf_counter()
-    (xyz, uv_local, faces, chart, island), plan, split_stats = _layout(pieces, cfg)
+    merged, plan, split_stats = _layout(relaxed, cfg)
+    if relaxed is not pieces and 0 < cfg.target_utilization:
+        # relaxed islands are rounder than the charts' near-square domains and can pack looser:
+        # keep the charts' own UVs only when the relaxed layouts miss the utilisation target
+        # and the unrelaxed reach it (coarse packing)
+        got = plan.utilization if plan is not None else -1.0
+        relax_stats["relax_kept"] = True
+        if got < cfg.target_utilization:
+            raw = _layout(pieces, cfg)
+            relax_stats["utilization_coarse_relaxed"] = got
+            relax_stats["utilization_coarse_unrelaxed"] = raw[1].utilization if raw[1] is not None else None
+            if raw[1] is not None and raw[1].utilization >= cfg.target_utilization:
+                merged, plan, split_stats = raw
+                relax_stats["relax_kept"] = False
+    (xyz, uv_local, faces, chart, island) = merged
     packing = pack_islands(uv_local, faces, island, resolution=cfg.resolution, padding=cfg.padding, plan=plan)
     t2 = time.perf_counter()
     mesh = make_uv_mesh(charts.normalization.invert(xyz), faces, packing.uv, name="atlas")

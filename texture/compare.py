@@ -130,9 +130,13 @@ def table(rows: list[dict]) -> str:
 def _relax_sentence(a: dict) -> str:
     if "relax_energy_before" not in a:
         return " Islands not relaxed (the charts' own UVs)."
-    return (f" Islands relaxed toward an isometry (SLIM): mean tr g + tr g^-1 - 4 "
+    text = (f" Islands relaxed toward an isometry (SLIM): mean tr g + tr g^-1 - 4 "
             f"{a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f}, at most "
             f"{a['relax_iterations_max']} iterations, {a['relax_stopped_by_crossing']} stopped by a border crossing.")
+    if a.get("relax_kept") is False:
+        text += (f" Not kept: relaxed islands packed to {a['utilization_coarse_relaxed']:.2f} (coarse), the charts' "
+                 f"own UVs to {a['utilization_coarse_unrelaxed']:.2f}, and the target is 0.6.")
+    return text
 
 
 def to_markdown(result: dict) -> str:

@@ -273,3 +273,37 @@ def test_unique_rows_matches_numpy():
     np.testing.assert_array_equal(i2, ids.reshape(-1))
     empty_first, empty_ids = unique_rows(np.zeros((0, 5)))  # no rows: no ids (uv_islands of an empty piece)
     assert len(empty_first) == 0 and len(empty_ids) == 0
+
+
+@pytest.mark.parametrize("relaxed_util, raw_util, kept", [(0.55, 0.62, False), (0.55, 0.58, True),
+                                                          (0.61, 0.70, True)])
+def test_relaxation_is_dropped_only_when_it_costs_the_utilisation_target(sphere_run, monkeypatch,
+                                                                         relaxed_util, raw_util, kept):
+    """The charts' own UVs replace the relaxed ones only when the relaxed layouts pack below
+    ``target_utilization`` (0.6) and the unrelaxed reach it (coarse utilisations stubbed here;
+    the layouts and the packing are the real ones)."""
+    import texture.atlas as atlas_mod
+    from texture.pack import Plan
+
+    charts = load_charts(sphere_run / "charts.npz")
+    cfg = AtlasConfig(resolution=128, padding=2, max_islands=0)
+    real_layout, calls = atlas_mod._layout, []
+
+    def layout(pieces, c):  # first call: the relaxed pieces; a second: the charts' own
+        merged, plan, stats = real_layout(pieces, c)
+        calls.append(len(calls))
+        return merged, Plan(relaxed_util if len(calls) == 1 else raw_util, plan.texels_per_unit, plan.options,
+                            plan.attempts, None), stats
+
+    monkeypatch.setattr(atlas_mod, "_layout", layout)
+    got = build_atlas(charts, cfg)
+    monkeypatch.setattr(atlas_mod, "_layout", real_layout)
+    raw = build_atlas(charts, AtlasConfig(resolution=128, padding=2, max_islands=0, relax=RelaxConfig(iterations=0)))
+    assert got.stats["relax_kept"] is kept
+    assert len(calls) == (1 if relaxed_util >= 0.6 else 2)  # the unrelaxed layout only when below target
+    d_got = measure(got.mesh).summary["distortion_metric"]
+    d_raw = measure(raw.mesh).summary["distortion_metric"]
+    if kept:
+        assert d_got < d_raw - RelaxConfig().min_gain
+    else:
+        assert d_got == pytest.approx(d_raw, rel=1e-6)
