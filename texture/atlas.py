@@ -36,6 +36,10 @@ class AtlasConfig:
     trim: TrimConfig = field(default_factory=TrimConfig)
     orient: bool = True
     """With a reference surface, reorient inside-out parts of charts (:mod:`texture.orient`)."""
+    orient_fragment_island: float = 2e-4
+    """An inside-out fragment (under ``trim.min_island_fraction``) that the orientation's
+    drop budget cannot take becomes an island of its own, reoriented, when it is at least
+    this fraction of the total area; smaller ones stay with their surroundings (0 = all do)."""
     relax: RelaxConfig = field(default_factory=RelaxConfig)
     """Re-flatten every island toward an isometry before packing (:mod:`texture.relax`;
     ``relax.iterations = 0`` keeps the charts' own UVs)."""
@@ -351,7 +355,9 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
     pieces, orient_stats = trimmed.pieces, {}
     if reference is not None and cfg.orient:
         total = sum(float(p.area().sum()) for p in pieces)
-        pieces, orient_stats = orient_pieces(pieces, reference, cfg.trim.min_island_fraction * total)
+        pieces, orient_stats = orient_pieces(
+            pieces, reference, cfg.trim.min_island_fraction * total,
+            min_fragment_island=cfg.orient_fragment_island * total if cfg.orient_fragment_island > 0 else None)
     t1 = time.perf_counter()
     relaxed, relax_stats = relax_pieces(pieces, cfg.relax)
     t_relax = time.perf_counter()

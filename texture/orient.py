@@ -192,19 +192,23 @@ def _empty(chart: int) -> Piece:
 
 
 def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_budget: float = 0.0,
-                      passes: int = 3) -> tuple[Piece, Piece, float]:
+                      passes: int = 3, min_island: float | None = None) -> tuple[Piece, Piece, float]:
     """(outward part, inward part reoriented outward, dropped 3D area) of ``piece``.
 
     Fragments (parts of an island the cut splits off) smaller than ``min_area`` are dropped,
     smallest first, while their total stays within ``drop_budget``; the others are kept
-    with their surroundings. See the module docstring.
+    with their surroundings, or, if at least ``min_island``, reoriented as islands of their
+    own. See the module docstring.
     """
-    out, back, dropped, _, _ = _split(_Part.of(piece, reference), min_area, drop_budget, passes)
+    out, back, dropped, _, _ = _split(_Part.of(piece, reference), min_area, drop_budget, passes, min_island)
     return out, back, dropped
 
 
-def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
-    """(outward piece, reoriented piece, dropped area, folded area before, after) of one part."""
+def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3, min_island: float | None = None):
+    """(outward piece, reoriented piece, dropped area, folded area before, after) of one part.
+
+    A fragment that the drop budget cannot take stays on its own side as a separate island
+    if it is at least ``min_island`` (default: never, it goes with its surroundings)."""
     piece = whole.piece
     if len(piece.faces) == 0:
         return piece, _empty(piece.chart), 0.0, 0.0, 0.0
@@ -244,6 +248,8 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3):
                 keep[i][faces] = False
                 dropped += area
                 continue
+            if not mute and min_island is not None and area >= min_island:
+                continue  # reoriented with its side: an island of its own
             flip = verts[force[verts] != s]
             if len(flip):
                 force[flip] = s
@@ -312,7 +318,8 @@ def _without_specks(part: _Part, min_area: float) -> _Part:
 
 
 def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
-                  max_dropped_fraction: float = 2.5e-3) -> tuple[list[Piece], dict]:
+                  max_dropped_fraction: float = 2.5e-3,
+                  min_fragment_island: float | None = None) -> tuple[list[Piece], dict]:
     """Every piece split by :func:`split_orientation`; stats in percent of the total area.
 
     Fragments may be dropped up to ``max_dropped_fraction`` of each piece's area. The
@@ -325,7 +332,8 @@ def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
     total = max(sum(float(p.area().sum()) for p in pieces), 1e-300)
     outward, inward, dropped, before, after = [], [], 0.0, 0.0, 0.0
     for p in pieces:
-        a, b, d, f, g = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()))
+        a, b, d, f, g = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()),
+                               min_island=min_fragment_island)
         outward.append(a)
         inward.append(b)
         dropped += d

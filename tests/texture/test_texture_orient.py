@@ -135,6 +135,23 @@ def test_small_fragment_over_budget_stays_with_its_island():
     assert folded_area(out, ref) == pytest.approx(np.pi * 0.25 ** 2, rel=0.35)  # reported, not hidden
 
 
+@pytest.mark.parametrize("min_island", [0.1, 0.3])
+def test_fragment_over_budget_becomes_its_own_island_if_large_enough(min_island):
+    p = _piece(_flat)
+    ref = _speck_reference()
+    disc = np.pi * 0.25 ** 2  # ~0.196: an island of its own at min_island 0.1, not at 0.3
+    out, back, dropped = split_orientation(p, ref, min_area=0.25, drop_budget=0.0, min_island=min_island)
+    assert dropped == 0.0
+    assert out.area().sum() + back.area().sum() == pytest.approx(4.0, rel=1e-9)  # nothing lost
+    if min_island < disc:
+        assert back.area().sum() == pytest.approx(disc, rel=0.35)
+        assert uv_islands(back.faces, back.uv).max() == 0  # one island, reoriented outward
+        assert folded_area(back, ref) + folded_area(out, ref) == pytest.approx(0.0, abs=0.02 * disc)
+    else:  # as without the option: kept with its island, and still folded
+        assert len(back.faces) == 0 and uv_islands(out.faces, out.uv).max() == 0
+        assert folded_area(out, ref) == pytest.approx(disc, rel=0.35)
+
+
 def test_undecided_fragment_is_kept_not_dropped():
     # the same speck, with a second layer 0.01 below facing up (a touching part): inside the
     # disc the reference faces both ways within FOLD_TOL, so the speck is folded by no
