@@ -19,7 +19,7 @@ from .geometry import sample_surface
 from .islands import unique_rows, uv_islands
 from .orient import Reference, orient_pieces
 from .clip import clip_mesh
-from .relax import RelaxConfig, isometric_scale, relax_islands
+from .relax import RelaxConfig, relax_islands
 from .pack import PACK_CANDIDATES, PRUNE_MARGIN, Packing, pack_islands, plan_layouts
 from .trim import Piece, TrimConfig, trim_charts
 from .uvmesh import Normalization, UVMesh, make_uv_mesh
@@ -138,10 +138,9 @@ def relax_pieces(pieces: list[Piece], cfg: RelaxConfig) -> tuple[list[Piece], di
     stats = {"relax_iterations_max": 0, "relax_stopped_by_crossing": 0}
     if cfg.iterations <= 0 or not live:
         return pieces, stats
-    # one scale for all charts: UVs in chart units -> isometric units
-    xyz = np.concatenate([q.xyz[q.faces].reshape(-1, 3) for q, _ in live])
-    uv = np.concatenate([q.uv[q.faces].reshape(-1, 2) for q, _ in live])
-    scale = isometric_scale(xyz, uv, np.arange(len(xyz)).reshape(-1, 3))
+    # one scale for all charts (UVs in chart units -> isometric units), as isometric_scale
+    uv_total = sum(float(q.uv_area().sum()) for q, _ in live)
+    scale = float(np.sqrt(sum(float(q.area().sum()) for q, _ in live) / uv_total)) if uv_total > 0 else 1.0
     out, before, after, area = [], 0.0, 0.0, 0.0
     for p, q, isl in prepared:
         if isl is None:

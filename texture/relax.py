@@ -11,11 +11,12 @@ its own: SLIM (Rabinovich et al., "Scalable Locally Injective Mappings", 2017; l
 from the island's own UVs, with free boundaries. The energy is infinite on a degenerate
 triangle and SLIM's line search never crosses it, so no face flips. What SLIM does not
 prevent is the island's *border* running over itself (global overlap): after every
-iteration each island's boundary edges are tested for crossings, and an island whose
-border crosses goes back to its last crossing-free UVs and stops there.
+iteration each island's boundary edges are tested for crossings; where one appears, the
+border vertices near it are held in place (soft constraints) and the step is retried, and
+after ``pin_rounds`` such retries the island keeps its last crossing-free UVs.
 
 One texel density for all charts: before relaxing, every island's UVs are scaled by one
-global factor (total UV area = total 3D area, the harness's scale), so SLIM's target, an
+global factor (total UV area = total 3D area), so SLIM's target, an
 isometry, means the same texel size everywhere; the result is scaled back to chart units.
 Topology, 3D positions, borders and seams are unchanged: only UV positions move.
 """
@@ -26,8 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mna import distortion as D
+
 from .distortion_faces import face_geometry
-from .islands import half_edges, uv_islands
+from .geometry import triangle_areas
+from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 
 
 #: weight of the soft constraints that hold border vertices (libigl's default).
@@ -53,17 +57,14 @@ class RelaxConfig:
 
 
 def _local_jacobian_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple[float, float]:
-    """(sum over faces of ``A (tr g + tr g^-1)``, sum of ``A``) over faces with a Jacobian."""
+    """(sum over faces of ``A (tr g + tr g^-1)``, sum of ``A``); inf energy if a face is degenerate."""
     geom = face_geometry(xyz, faces, uv)
     v = geom.valid & (geom.area_3d > 0)
     if not v.any():
         return np.inf, 0.0
-    J = geom.jac[v]
-    g = np.einsum("fki,fkj->fij", J, J)
-    tr = g[:, 0, 0] + g[:, 1, 1]
-    det = g[:, 0, 0] * g[:, 1, 1] - g[:, 0, 1] * g[:, 1, 0]
+    g = D.metric_tensor(geom.jac[v])
     with np.errstate(divide="ignore", invalid="ignore"):
-        e = tr + tr / det  # tr g^-1 = tr g / det g for 2x2
+        e = D.trace(g) + D.trace_inverse(g, eps=0.0)
     a = geom.area_3d[v]
     if (~geom.valid).any() or not np.isfinite(e).all():
         return np.inf, float(a.sum())
@@ -78,12 +79,11 @@ def energy_excess(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float:
 
 def boundary_edges(faces: np.ndarray) -> np.ndarray:
     """(B, 2) vertex pairs of the edges used by exactly one face (each in its face's direction)."""
-    he = half_edges(np.asarray(faces, np.int64))
-    if len(he) == 0:
-        return he
-    key = he.min(1) * (int(he.max()) + 1) + he.max(1)
-    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return he[counts[inverse] == 1]
+    faces = np.asarray(faces, np.int64)
+    if len(faces) == 0:
+        return np.zeros((0, 2), np.int64)
+    once = edge_use_counts(edge_keys(np.arange(int(faces.max()) + 1), faces)) == 1
+    return half_edges(faces)[once]
 
 
 def crossing_edges(faces: np.ndarray, uv: np.ndarray, edges: np.ndarray | None = None) -> np.ndarray:
@@ -126,11 +126,6 @@ def crossing_edges(faces: np.ndarray, uv: np.ndarray, edges: np.ndarray | None =
     return np.stack([edges[i[hit]], edges[j[hit]]], 1)
 
 
-def boundary_crossings(faces: np.ndarray, uv: np.ndarray) -> int:
-    """How many pairs of boundary edges (sharing no vertex) cross in UV; see :func:`crossing_edges`."""
-    return len(crossing_edges(faces, uv))
-
-
 @dataclass
 class IslandRelaxation:
     """What :func:`relax_island` did."""
@@ -156,13 +151,13 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
     result = IslandRelaxation(uv, 0, before, before, False)
     if cfg.iterations <= 0 or not np.isfinite(before) or before < cfg.min_gain or len(faces) < 2:
         return result
-    if check_crossings and boundary_crossings(faces, uv):
+    border_edges = boundary_edges(faces)
+    if check_crossings and len(crossing_edges(faces, uv, border_edges)):
         return result
     # SLIM's local step fits rotations (det > 0): a clockwise island is mirrored in and out
     mirror = np.array([1.0, -1.0 if face_geometry(xyz, faces, uv).uv_area.sum() < 0 else 1.0])
     xyz_f = np.asfortranarray(xyz, np.float64)
     faces_f = np.asfortranarray(faces, np.int32)
-    border_edges = boundary_edges(faces)
     border = np.unique(border_edges)
     edge_len = np.linalg.norm(uv[faces[:, 1]] - uv[faces[:, 0]], axis=1)
     pins = np.zeros(0, np.int64)
@@ -204,9 +199,8 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
 
 def isometric_scale(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float:
     """``s`` with ``sum |uv area| * s^2 = sum 3D area`` (the one global scale of every island)."""
-    geom = face_geometry(xyz, faces, uv)
-    uv_total = float(np.abs(geom.uv_area).sum())
-    return float(np.sqrt(geom.area_3d.sum() / uv_total)) if uv_total > 0 else 1.0
+    uv_total = float(triangle_areas(uv, faces).sum())
+    return float(np.sqrt(triangle_areas(xyz, faces).sum() / uv_total)) if uv_total > 0 else 1.0
 
 
 def relax_islands(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, island: np.ndarray | None = None,
@@ -236,7 +230,7 @@ def relax_islands(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, island: np
         f = inv.reshape(-1, 3)
         r = relax_island(xyz[vid], out[vid] * s, f, cfg, check_crossings)
         out[vid] = r.uv / s
-        area = float(face_geometry(xyz[vid], f, r.uv).area_3d.sum())
+        area = float(triangle_areas(xyz[vid], f).sum())
         stats["islands"] += 1
         stats["iterations"].append(r.iterations)
         stats["stopped_by_crossing"] += int(r.stopped_by_crossing)
