@@ -176,3 +176,33 @@ def test_off_surface_piece_is_never_cut():
     p = _piece(lambda uv: _folded_sheet(uv) + [0.0, 0.0, 0.5])  # 0.5 above the plane: off the surface
     out, back, dropped = split_orientation(p, _plane_reference(), min_area=0.01)
     assert out is p and len(back.faces) == 0 and dropped == 0.0
+
+
+@pytest.mark.parametrize("max_islands, islands", [(0, 2), (2, 2), (1, 1)])
+def test_fragment_islands_only_within_the_island_budget(max_islands, islands):
+    # the speck is a fragment (under min_island_fraction of the area) that the drop budget
+    # cannot take and that is large enough to be an island: with it, the atlas has 2 islands.
+    # A budget of 1 island takes the plain orientation instead (speck left folded), unless
+    # the atlas exceeds the budget without fragment islands too (next test)
+    from texture.atlas import AtlasConfig, _oriented, island_count
+    from texture.trim import TrimConfig
+
+    cfg = AtlasConfig(trim=TrimConfig(min_island_fraction=0.25 / 4.0), orient_fragment_island=0.1 / 4.0,
+                      max_islands=max_islands)
+    out, stats = _oriented([_piece(_flat)], _speck_reference(), cfg)
+    assert island_count(out) == islands
+    assert stats["orient_fragment_islands"] is (islands == 2)
+    disc = np.pi * 0.25 ** 2
+    folded = sum(folded_area(p, _speck_reference()) for p in out)
+    assert folded == (pytest.approx(0.0, abs=0.02 * disc) if islands == 2 else pytest.approx(disc, rel=0.35))
+
+
+def test_fragment_islands_kept_when_over_the_budget_anyway():
+    from texture.atlas import AtlasConfig, _oriented, island_count
+    from texture.trim import TrimConfig
+
+    far = _piece(lambda uv: _flat(uv) + [10.0, 0.0, 0.0])  # a second part, away from the speck
+    cfg = AtlasConfig(trim=TrimConfig(min_island_fraction=0.25 / 8.0), orient_fragment_island=0.1 / 8.0,
+                      max_islands=1)
+    out, stats = _oriented([_piece(_flat), far], _speck_reference(), cfg)
+    assert island_count(out) == 3 and stats["orient_fragment_islands"] is True
