@@ -22,6 +22,7 @@ Topology, 3D positions, borders and seams are unchanged: only UV positions move.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -203,43 +204,88 @@ def isometric_scale(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float
     return float(np.sqrt(triangle_areas(xyz, faces).sum() / uv_total)) if uv_total > 0 else 1.0
 
 
+#: below this many faces in all, islands are relaxed in this process (starting workers costs more)
+PARALLEL_MIN_FACES = 20_000
+
+
+def _relax_job(job):
+    xyz, uv, faces, cfg, check_crossings = job
+    return relax_island(xyz, uv, faces, cfg, check_crossings)
+
+
+def _run_jobs(jobs: list, workers: int | None) -> list:
+    """``relax_island`` of every job, in up to ``workers`` processes (default: CPU count, at
+    most 4; SLIM runs on one core and holds the GIL, so threads do not help), largest first."""
+    workers = min(len(jobs), workers or min(os.cpu_count() or 1, 4))
+    if workers > 1 and sum(len(j[2]) for j in jobs) >= PARALLEL_MIN_FACES:
+        order = sorted(range(len(jobs)), key=lambda i: -len(jobs[i][2]))
+        try:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
+                done = list(ex.map(_relax_job, [jobs[i] for i in order]))
+            out = [None] * len(jobs)
+            for i, r in zip(order, done):
+                out[i] = r
+            return out
+        except (OSError, RuntimeError, ValueError):  # no processes here: relax in this one
+            pass
+    return [_relax_job(j) for j in jobs]
+
+
 def relax_islands(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, island: np.ndarray | None = None,
                   cfg: RelaxConfig | None = None, scale: float | None = None,
-                  check_crossings: bool = True) -> tuple[np.ndarray, dict]:
+                  check_crossings: bool = True, workers: int | None = None) -> tuple[np.ndarray, dict]:
     """Relax every island of ``(xyz, uv, faces)``; returns ``(uv, stats)``.
 
     ``island`` (F,) defaults to the UV islands; islands must not share vertices.
     ``scale`` (UV units -> isometric) defaults to :func:`isometric_scale` of the whole mesh;
     pass one scale for several meshes that share a texel density.
     """
-    cfg = cfg or RelaxConfig()
-    faces = np.asarray(faces, np.int64)
-    if island is None:
-        island = uv_islands(faces, uv)
     s = isometric_scale(xyz, uv, faces) if scale is None else float(scale)
-    out = np.array(uv, np.float64)
-    stats = {"islands": 0, "iterations": [], "stopped_by_crossing": 0, "energy_before": 0.0,
-             "energy_after": 0.0, "area": 0.0}
-    order = np.argsort(island, kind="stable")
-    bounds = np.searchsorted(island[order], np.arange(int(island.max()) + 2)) if len(island) else [0]
-    for k in range(len(bounds) - 1):
-        fi = order[bounds[k]:bounds[k + 1]]
-        if len(fi) == 0:
-            continue
-        vid, inv = np.unique(faces[fi], return_inverse=True)
-        f = inv.reshape(-1, 3)
-        r = relax_island(xyz[vid], out[vid] * s, f, cfg, check_crossings)
-        out[vid] = r.uv / s
-        area = float(triangle_areas(xyz[vid], f).sum())
-        stats["islands"] += 1
-        stats["iterations"].append(r.iterations)
-        stats["stopped_by_crossing"] += int(r.stopped_by_crossing)
+    return relax_meshes([(xyz, uv, faces, island)], cfg, s, check_crossings, workers)[0]
+
+
+def relax_meshes(meshes: list[tuple], cfg: RelaxConfig | None = None, scale: float = 1.0,
+                 check_crossings: bool = True, workers: int | None = None) -> list[tuple[np.ndarray, dict]]:
+    """:func:`relax_islands` of several meshes ``(xyz, uv, faces, island or None)`` at one
+    ``scale``, all their islands relaxed in parallel (the result is the same as one by one)."""
+    cfg = cfg or RelaxConfig()
+    s = float(scale)
+    jobs, where = [], []  # where: (mesh, vertex ids) of each job
+    prepared = []
+    for m, (xyz, uv, faces, island) in enumerate(meshes):
+        faces = np.asarray(faces, np.int64)
+        if island is None:
+            island = uv_islands(faces, uv)
+        prepared.append((xyz, faces))
+        order = np.argsort(island, kind="stable")
+        bounds = np.searchsorted(island[order], np.arange(int(island.max()) + 2)) if len(island) else [0]
+        for k in range(len(bounds) - 1):
+            fi = order[bounds[k]:bounds[k + 1]]
+            if len(fi) == 0:
+                continue
+            vid, inv = np.unique(faces[fi], return_inverse=True)
+            jobs.append((xyz[vid], np.asarray(uv, np.float64)[vid] * s, inv.reshape(-1, 3), cfg, check_crossings))
+            where.append((m, vid))
+    results = _run_jobs(jobs, workers)
+    outs = [np.array(uv, np.float64) for _, uv, _, _ in meshes]
+    stats = [{"islands": 0, "iterations": [], "stopped_by_crossing": 0, "energy_before": 0.0,
+              "energy_after": 0.0, "area": 0.0} for _ in meshes]
+    for (m, vid), job, r in zip(where, jobs, results):
+        outs[m][vid] = r.uv / s
+        st = stats[m]
+        area = float(triangle_areas(job[0], job[2]).sum())
+        st["islands"] += 1
+        st["iterations"].append(r.iterations)
+        st["stopped_by_crossing"] += int(r.stopped_by_crossing)
         if np.isfinite(r.excess_before):
-            stats["energy_before"] += area * r.excess_before
-            stats["energy_after"] += area * r.excess_after
-            stats["area"] += area
-    a = stats["area"]
-    if a > 0:
-        stats["energy_before"] /= a
-        stats["energy_after"] /= a
-    return out, stats
+            st["energy_before"] += area * r.excess_before
+            st["energy_after"] += area * r.excess_after
+            st["area"] += area
+    for st in stats:
+        if st["area"] > 0:
+            st["energy_before"] /= st["area"]
+            st["energy_after"] /= st["area"]
+    return list(zip(outs, stats))

@@ -104,7 +104,19 @@ def covered_by(points: np.ndarray, projector: MeshProjector, tol: float,
     return cov
 
 
-def ownership_fields(pieces: list[Piece], cover_tol: float, banned: list[np.ndarray] | None = None) -> list[np.ndarray]:
+def projector(p: Piece, cache: dict | None = None) -> MeshProjector | None:
+    """:class:`MeshProjector` of ``p`` (None if it has no faces); ``cache`` (keyed by the piece
+    object) keeps one per piece across the trim's passes and checks."""
+    if cache is not None and id(p) in cache:
+        return cache[id(p)][1]
+    proj = MeshProjector(p.xyz, p.faces) if len(p.faces) else None
+    if cache is not None:
+        cache[id(p)] = (p, proj)  # holding p keeps its id from being reused
+    return proj
+
+
+def ownership_fields(pieces: list[Piece], cover_tol: float, banned: list[np.ndarray] | None = None,
+                     cache: dict | None = None) -> list[np.ndarray]:
     """Per piece, ``o_k`` at its vertices (see module docstring); finite.
 
     ``banned[k]`` (V_k,) marks vertices of piece ``k`` that must lose: ``o_k < 0`` there and
@@ -115,7 +127,7 @@ def ownership_fields(pieces: list[Piece], cover_tol: float, banned: list[np.ndar
     for p in pieces:
         b = border_points(p)
         trees.append(cKDTree(b) if len(b) else None)
-    projectors = [MeshProjector(p.xyz, p.faces) if len(p.faces) else None for p in pieces]
+    projectors = [projector(p, cache) for p in pieces]
     fields = []
     far = 10.0  # > unit-ball diameter: "no border"
     for k, p in enumerate(pieces):
@@ -173,13 +185,14 @@ class TrimResult(NamedTuple):
     stats: dict
 
 
-def doubly_covered_percent(pieces: list[Piece], tol: float, samples: int, seed: int) -> float:
+def doubly_covered_percent(pieces: list[Piece], tol: float, samples: int, seed: int,
+                           cache: dict | None = None) -> float:
     """Percent of the total area that another chart also covers (sampled, seeded)."""
     areas = [float(p.area().sum()) for p in pieces]
     total = sum(areas)
     if total <= 0 or len(pieces) < 2:
         return 0.0
-    projectors = [MeshProjector(p.xyz, p.faces) if len(p.faces) else None for p in pieces]
+    projectors = [projector(p, cache) for p in pieces]
     covered_area = 0.0
     for k, p in enumerate(pieces):
         n = int(round(samples * areas[k] / total))
@@ -194,9 +207,9 @@ def doubly_covered_percent(pieces: list[Piece], tol: float, samples: int, seed: 
     return 100.0 * covered_area / total
 
 
-def _ban_small_islands(domain, trimmed, sources, banned, min_area, tol) -> int:
+def _ban_small_islands(domain, trimmed, sources, banned, min_area, tol, cache: dict | None = None) -> int:
     """Ban (in ``banned``) the source vertices of small islands that another chart covers."""
-    others = [(MeshProjector(p.xyz, p.faces), banned[j]) if len(p.faces) else None for j, p in enumerate(domain)]
+    others = [(projector(p, cache), banned[j]) if len(p.faces) else None for j, p in enumerate(domain)]
     count = 0
     for k, (q, src) in enumerate(zip(trimmed, sources)):
         island, small = _small_islands(q, min_area)
@@ -222,21 +235,22 @@ def trim_charts(charts: ChartGrids, config: TrimConfig | None = None, passes: in
     total = sum(float(p.area().sum()) for p in domain)
     min_area = cfg.min_island_fraction * total
     banned = [np.zeros(len(p.xyz), bool) for p in domain]
+    cache: dict = {}  # one MeshProjector per piece for all passes and checks
     handed = 0
     for it in range(passes):
-        fields = ownership_fields(domain, cfg.cover_tol, banned)
+        fields = ownership_fields(domain, cfg.cover_tol, banned, cache)
         clipped = [_clip_piece(p, f) if len(p.faces) else (p, np.arange(len(p.xyz))) for p, f in zip(domain, fields)]
         trimmed = [c[0] for c in clipped]
         if it == passes - 1:
             break
-        n = _ban_small_islands(domain, trimmed, [c[1] for c in clipped], banned, min_area, cfg.cover_tol)
+        n = _ban_small_islands(domain, trimmed, [c[1] for c in clipped], banned, min_area, cfg.cover_tol, cache)
         handed += n
         if n == 0:
             break
     # small islands left: covered elsewhere -> slivers, drop; alone -> tiny holes, drop the
     # smallest while their total stays under max_dropped_fraction of the area
     finals = [_without_slivers(p) for p in trimmed]
-    projs = [(MeshProjector(p.xyz, p.faces), None) if len(p.faces) else None for p in finals]
+    projs = [(projector(p, cache), None) if len(p.faces) else None for p in finals]
     keep = [np.ones(len(q.faces), bool) for q in finals]
     alone = []  # (area, chart, faces)
     dropped, dropped_area = 0, 0.0
@@ -261,8 +275,9 @@ def trim_charts(charts: ChartGrids, config: TrimConfig | None = None, passes: in
     stats = {
         "domain_area": total,
         "trimmed_area": sum(float(p.area().sum()) for p in final),
-        "doubly_covered_percent_before": doubly_covered_percent(domain, cfg.cover_tol, cfg.check_samples, cfg.seed),
-        "doubly_covered_percent": doubly_covered_percent(final, cfg.cover_tol, cfg.check_samples, cfg.seed),
+        "doubly_covered_percent_before": doubly_covered_percent(domain, cfg.cover_tol, cfg.check_samples, cfg.seed,
+                                                                cache),
+        "doubly_covered_percent": doubly_covered_percent(final, cfg.cover_tol, cfg.check_samples, cfg.seed, cache),
         "handed_over_islands": handed,
         "dropped_islands": dropped,
         "dropped_uncovered_percent": 100.0 * dropped_area / total,

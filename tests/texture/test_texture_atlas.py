@@ -307,3 +307,28 @@ def test_relaxation_is_dropped_only_when_it_costs_the_utilisation_target(sphere_
         assert d_got < d_raw - RelaxConfig().min_gain
     else:
         assert d_got == pytest.approx(d_raw, rel=1e-6)
+
+
+@pytest.mark.parametrize("target, searched", [(0.6, [1]), (0.72, [1, 2])])
+def test_off_centre_layouts_searched_best_guess_first_until_the_target(monkeypatch, target, searched):
+    """Guesses 0.5, 0.7, 0.66, 0.2: those more than PRUNE_MARGIN under the target are never
+    searched; the others are searched best guess first, one batch (here one layout) at a time,
+    from their guesses, until a search reaches the target."""
+    import texture.atlas as A
+    from texture.pack import PRUNE_MARGIN, Plan
+
+    guesses = [0.5, 0.7, 0.66, 0.2]
+    calls = []
+    monkeypatch.setattr(A, "estimate_layouts", lambda layouts, **k: [(g, 100.0 * g) for g in guesses])
+
+    def plan(layouts, *, starts, **k):
+        calls.append(starts)
+        return [Plan(s / 100.0 + 0.01, s, {}, 1) for s in starts]  # each search ends 0.01 above its guess
+
+    monkeypatch.setattr(A, "plan_layouts", plan)
+    cfg = AtlasConfig(target_utilization=target)
+    plans = A._off_centre_plans([("layout", i) for i in range(4)], cfg, workers=1)
+    assert calls == [[100.0 * guesses[i]] for i in searched]
+    got = {i: p.utilization for i, p in enumerate(plans) if p is not None}
+    assert got == {i: pytest.approx(guesses[i] + 0.01) for i in searched}
+    assert all(guesses[i] >= target - PRUNE_MARGIN for i in searched)

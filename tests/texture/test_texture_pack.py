@@ -153,3 +153,67 @@ def test_export_folded_single_chart_run(tmp_path, capsys):
     assert back.uv.min() >= 0 and back.uv.max() <= 1
     isl = uv_islands(back.faces, back.uv)
     assert verify_packing(back.uv, back.faces, isl, 256)[0] == 0
+
+
+def _grid_island(n=12, hole=False, shift=(0.0, 0.0)):
+    """An n x n grid of unit-spaced squares (two triangles each), optionally without its
+    central 2 x 2 squares: a rectangle (4 corners) or a rectangle with a square hole."""
+    faces = grid_faces(n + 1)
+    if hole:
+        c = np.arange(n * n * 2) // 2
+        i, j = c // n, c % n
+        mid = n // 2
+        faces = faces[~((abs(i - mid + 0.5) < 1.1) & (abs(j - mid + 0.5) < 1.1))]
+    t = np.arange(n + 1, dtype=float)
+    u, v = np.meshgrid(t, t, indexing="xy")
+    return np.column_stack([u.ravel(), v.ravel()]) + shift, faces
+
+
+@pytest.mark.parametrize("hole", [False, True])
+def test_island_outline_is_the_border_ear_clipped(hole):
+    uv, faces = _grid_island(hole=hole)
+    island = np.zeros(len(faces), np.int64)
+    out = pack.island_outlines(uv, faces, island)
+    # straight runs along the grid's sides are dropped: a rectangle is 4 corners, 2 triangles;
+    # with a square hole 8 corners, ear-clipped into n + 2h - 2 = 8 triangles
+    assert len(out) == (8 if hole else 2)
+    assert len(np.unique(out)) == (8 if hole else 4)
+    assert pack.triangle_areas(uv, out).sum() == pytest.approx(144.0 - (4.0 if hole else 0.0), rel=1e-12)
+    # the same texels: rasterised (centres on an edge count) the two triangulations cover the same centres
+    from texture.raster import face_id_image
+
+    scaled = uv / 13.0
+    np.testing.assert_array_equal(face_id_image(scaled[out], 52, 52)[0] >= 0, face_id_image(scaled[faces], 52, 52)[0] >= 0)
+
+
+def test_island_outline_keeps_faces_where_uvs_overlap_or_border_pinches():
+    uv, faces = _grid_island(n=4)
+    folded = uv.copy()
+    folded[6] += [2.5, 0.0]  # an interior vertex dragged over the border: the UVs overlap themselves
+    island = np.zeros(len(faces), np.int64)
+    np.testing.assert_array_equal(pack.island_outlines(folded, faces, island), faces)
+    # two squares touching at one corner, one island: the border is not simple loops
+    uv2 = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [2, 1], [2, 2], [1, 2]], float)
+    bow = np.array([[0, 1, 2], [0, 2, 3], [2, 4, 5], [2, 5, 6]])
+    np.testing.assert_array_equal(pack.island_outlines(uv2, bow, np.zeros(4, np.int64)), bow)
+
+
+def test_packing_through_outlines_matches_packing_faces():
+    a_uv, a_f = _grid_island(n=16)
+    b_uv, b_f = _grid_island(n=10, hole=True)
+    c_uv, c_f = _grid_island(n=6)
+    uv = np.concatenate([a_uv, b_uv @ _rot(0.3).T, 0.5 * c_uv])
+    faces = np.concatenate([a_f, b_f + len(a_uv), c_f + len(a_uv) + len(b_uv)])
+    island = np.repeat([0, 1, 2], [len(a_f), len(b_f), len(c_f)])
+    got = {}
+    for outlines in (True, False):
+        isl = pack._Islands(uv, faces, island, outlines=outlines)
+        assert len(isl.xatlas_mesh[1]) == (2 + 8 + 2 if outlines else len(faces))
+        found = pack._search(isl, 256, 2, {}, 16)
+        assert found is not None
+        tpu, px, _ = found
+        pk = pack.Packing(px / 256, tpu / 256, tpu, 256, 2, 0.0, 0, 0.0, 0)
+        assert_valid_packing(pk, uv, faces, island)
+        got[outlines] = verify_packing(px / 256, faces, island, 256)[1]
+    # xatlas sees the same regions either way: the same layout, up to the bisection's tolerance
+    assert got[True] == pytest.approx(got[False], rel=0.02)
