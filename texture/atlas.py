@@ -355,16 +355,18 @@ def _oriented(pieces: list[Piece], reference: Reference, cfg: AtlasConfig) -> tu
 
     A fragment island trades a little folded area for an island: on a many-part shape (already
     over the island budget) that is the better trade, on a single-part one the few islands are
-    the point (a torus fit went from 6 to 13 islands with them, folded area 0 either way).
+    the point (a torus demo fit: 6 islands without them, 13 with).
     """
     total = sum(float(p.area().sum()) for p in pieces)
     min_area = cfg.trim.min_island_fraction * total
     if cfg.orient_fragment_island <= 0:
         return orient_pieces(pieces, reference, min_area)
     out, stats = orient_pieces(pieces, reference, min_area, min_fragment_island=cfg.orient_fragment_island * total)
-    n = island_count(out)
     stats["orient_fragment_islands"] = True
-    if cfg.max_islands > 0 and n > cfg.max_islands:
+    # orientation splits and reverses islands but never merges them: when the pieces already
+    # have more islands than the budget, orienting again without fragment islands cannot
+    # get within it (the 13-part truck: 7.5 s saved)
+    if 0 < cfg.max_islands < island_count(out) and island_count(pieces) <= cfg.max_islands:
         plain, plain_stats = orient_pieces(pieces, reference, min_area)
         if island_count(plain) <= cfg.max_islands:
             return plain, {**plain_stats, "orient_fragment_islands": False}

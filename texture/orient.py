@@ -200,18 +200,19 @@ def split_orientation(piece: Piece, reference: Reference, min_area: float, drop_
     with their surroundings, or, if at least ``min_island``, reoriented as islands of their
     own. See the module docstring.
     """
-    out, back, dropped, _, _ = _split(_Part.of(piece, reference), min_area, drop_budget, passes, min_island)
+    out, back, dropped, *_ = _split(_Part.of(piece, reference), min_area, drop_budget, passes, min_island)
     return out, back, dropped
 
 
 def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3, min_island: float | None = None):
-    """(outward piece, reoriented piece, dropped area, folded area before, after) of one part.
+    """(outward piece, reoriented piece, dropped area, folded area before, after, fragments made
+    islands of their own) of one part.
 
     A fragment that the drop budget cannot take stays on its own side as a separate island
     if it is at least ``min_island`` (default: never, it goes with its surroundings)."""
     piece = whole.piece
     if len(piece.faces) == 0:
-        return piece, _empty(piece.chart), 0.0, 0.0, 0.0
+        return piece, _empty(piece.chart), 0.0, 0.0, 0.0, 0
     before = whole.folded()
     g = _field(whole)
     magnitude = np.maximum(np.abs(g), 1e-6)
@@ -226,9 +227,9 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3, m
         sign = np.where(force != 0, force, np.sign(g))
         field = sign * magnitude
         if (field > 0).all():
-            return piece, _empty(piece.chart), 0.0, before, before
+            return piece, _empty(piece.chart), 0.0, before, before, 0
         if (field < 0).all():
-            return _empty(piece.chart), _reversed(piece), 0.0, before, whole.unfolded()
+            return _empty(piece.chart), _reversed(piece), 0.0, before, whole.unfolded(), 0
         parts = [whole.clip(field), whole.clip(-field)]
         fragments = []  # (area, part, faces, source vertices, sign to force)
         for i, ((part, src), s) in enumerate(zip(parts, (-1.0, 1.0))):
@@ -242,13 +243,14 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3, m
                     mute = float(part.piece.area()[faces][decided[faces]].sum()) < 0.5 * area
                     fragments.append((area, i, faces, verts, s, mute))
         keep = [np.ones(len(p.piece.faces), bool) for p, _ in parts]
-        dropped, changed = 0.0, False
+        dropped, changed, own_islands = 0.0, False, 0
         for area, i, faces, verts, s, mute in sorted(fragments, key=lambda f: (f[0], f[1], int(f[2][0]))):
             if not mute and dropped + area <= drop_budget:
                 keep[i][faces] = False
                 dropped += area
                 continue
             if not mute and min_island is not None and area >= min_island:
+                own_islands += 1
                 continue  # reoriented with its side: an island of its own
             flip = verts[force[verts] != s]
             if len(flip):
@@ -258,7 +260,7 @@ def _split(whole: _Part, min_area: float, drop_budget: float, passes: int = 3, m
             break
     pos, neg = (p.keep(k) for (p, _), k in zip(parts, keep))
     pos, neg = _settle(pos, neg)
-    return pos.piece, _reversed(neg.piece), dropped, before, pos.folded() + neg.unfolded()
+    return pos.piece, _reversed(neg.piece), dropped, before, pos.folded() + neg.unfolded(), own_islands
 
 
 def _settle(pos: _Part, neg: _Part) -> tuple[_Part, _Part]:
@@ -330,20 +332,22 @@ def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
     drops empty parts; a chart may now own two pieces.
     """
     total = max(sum(float(p.area().sum()) for p in pieces), 1e-300)
-    outward, inward, dropped, before, after = [], [], 0.0, 0.0, 0.0
+    outward, inward, dropped, before, after, own = [], [], 0.0, 0.0, 0.0, 0
     for p in pieces:
-        a, b, d, f, g = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()),
+        a, b, d, f, g, k = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()),
                                min_island=min_fragment_island)
         outward.append(a)
         inward.append(b)
         dropped += d
         before += f
         after += g
+        own += k
     out = [p for p in outward + inward if len(p.faces)]
     stats = {
         "folded_percent_before_orient": 100.0 * before / total,
         "reoriented_percent": 100.0 * sum(float(p.area().sum()) for p in inward) / total,
         "folded_percent": 100.0 * after / total,
         "orient_dropped_percent": 100.0 * dropped / total,
+        "orient_fragment_island_count": own,
     }
     return out, stats
