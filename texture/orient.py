@@ -41,6 +41,7 @@ from .clip import clip_mesh
 from .geometry import MeshProjector
 from .harness import FOLD_TOL, facet_normals
 from .islands import uv_islands
+from .parallel import parallel_map
 from .trim import Piece
 
 
@@ -319,6 +320,17 @@ def _without_specks(part: _Part, min_area: float) -> _Part:
     return part.keep(~small[island]) if small.any() else part
 
 
+#: below this many faces in all, pieces are split in this process (starting workers costs more)
+PARALLEL_MIN_FACES = 20_000
+
+
+def _split_job(k: int, shared):
+    pieces, reference, min_area, max_dropped_fraction, min_fragment_island = shared
+    p = pieces[k]
+    return _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()),
+                  min_island=min_fragment_island)
+
+
 def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
                   max_dropped_fraction: float = 2.5e-3,
                   min_fragment_island: float | None = None) -> tuple[list[Piece], dict]:
@@ -333,9 +345,11 @@ def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
     """
     total = max(sum(float(p.area().sum()) for p in pieces), 1e-300)
     outward, inward, dropped, before, after, own = [], [], 0.0, 0.0, 0.0, 0
-    for p in pieces:
-        a, b, d, f, g, k = _split(_Part.of(p, reference), min_area, max_dropped_fraction * float(p.area().sum()),
-                               min_island=min_fragment_island)
+    # pieces are independent: split in parallel processes, the reference shared by the fork
+    shared = (pieces, reference, min_area, max_dropped_fraction, min_fragment_island)
+    splits = parallel_map(_split_job, list(range(len(pieces))), shared=shared,
+                          parallel=sum(len(p.faces) for p in pieces) >= PARALLEL_MIN_FACES)
+    for a, b, d, f, g, k in splits:
         outward.append(a)
         inward.append(b)
         dropped += d

@@ -28,7 +28,6 @@ at full resolution follows.
 """
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass
 from functools import cached_property
@@ -37,6 +36,7 @@ import numpy as np
 
 from .geometry import triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges
+from .parallel import default_workers, parallel_map  # noqa: F401 (default_workers: re-exported)
 from .raster import iter_hits
 
 #: largest allowed distance (texels) between xatlas's placement and the re-placed island.
@@ -397,7 +397,7 @@ def _coarse(resolution: int, padding: int) -> tuple[int, int]:
     return resolution // factor, max(1, int(round(padding / factor)))
 
 
-def _coarse_search(job):
+def _coarse_search(job, _shared=None):
     """One candidate of one layout at the coarse resolution: (util, tpu, placement, calls) or None."""
     uv, faces, island, resolution, padding, opts, max_attempts, min_estimate, start = job
     res, pad = _coarse(resolution, padding)
@@ -412,7 +412,7 @@ def _coarse_search(job):
     return util, tpu * resolution / res, px / res, n + (start is not None)
 
 
-def _estimate_job(job):
+def _estimate_job(job, _shared=None):
     uv, faces, island, resolution, padding, opts = job
     res, pad = _coarse(resolution, padding)
     isl = _Islands(np.asarray(uv, np.float64), np.asarray(faces, np.int64), np.asarray(island, np.int64))
@@ -420,27 +420,6 @@ def _estimate_job(job):
         return None
     tpu = _first_guess(isl, res, pad, opts)
     return isl.area * tpu**2 / res**2, tpu
-
-
-def _parallel_map(fn, jobs: list, workers: int | None) -> list:
-    """``[fn(j) for j in jobs]`` in up to ``workers`` processes (default: the CPU count, at most
-    4): xatlas holds the GIL. Same result as in this process, where it falls back to."""
-    workers = min(len(jobs), workers or default_workers())
-    if workers > 1:
-        try:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
-
-            with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
-                return list(ex.map(fn, jobs))
-        except (OSError, RuntimeError, ValueError):  # no processes here: run in this one
-            pass
-    return [fn(j) for j in jobs]
-
-
-def default_workers() -> int:
-    """Processes for parallel searches: the CPU count, at most 4."""
-    return min(os.cpu_count() or 1, 4)
 
 
 def estimate_layouts(layouts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *, resolution: int = 2048,
@@ -451,7 +430,7 @@ def estimate_layouts(layouts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *
     or None.
     The bounded search ends near it (see ``PRUNE_MARGIN``): a cheap way to rank layouts."""
     jobs = [(uv, faces, island, resolution, padding, dict(options or {})) for uv, faces, island in layouts]
-    return _parallel_map(_estimate_job, jobs, workers)
+    return parallel_map(_estimate_job, jobs, workers)
 
 
 def plan_layouts(layouts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *, resolution: int = 2048,
@@ -470,7 +449,7 @@ def plan_layouts(layouts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *, re
     starts = starts or [None] * len(layouts)
     jobs = [(uv, faces, island, resolution, padding, opts, max_attempts, min_estimate, start)
             for (uv, faces, island), start in zip(layouts, starts) for opts in candidates]
-    results = _parallel_map(_coarse_search, jobs, workers)
+    results = parallel_map(_coarse_search, jobs, workers)
     plans = []
     n = len(candidates)
     for li in range(len(layouts)):

@@ -22,7 +22,6 @@ Topology, 3D positions, borders and seams are unchanged: only UV positions move.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +32,7 @@ from mna import distortion as D
 from .distortion_faces import face_geometry
 from .geometry import triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
+from .parallel import parallel_map
 
 
 #: weight of the soft constraints that hold border vertices (libigl's default).
@@ -208,30 +208,21 @@ def isometric_scale(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float
 PARALLEL_MIN_FACES = 20_000
 
 
-def _relax_job(job):
+def _relax_job(job, _shared=None):
     xyz, uv, faces, cfg, check_crossings = job
     return relax_island(xyz, uv, faces, cfg, check_crossings)
 
 
 def _run_jobs(jobs: list, workers: int | None) -> list:
-    """``relax_island`` of every job, in up to ``workers`` processes (default: CPU count, at
-    most 4; SLIM runs on one core and holds the GIL, so threads do not help), largest first."""
-    workers = min(len(jobs), workers or min(os.cpu_count() or 1, 4))
-    if workers > 1 and sum(len(j[2]) for j in jobs) >= PARALLEL_MIN_FACES:
-        order = sorted(range(len(jobs)), key=lambda i: -len(jobs[i][2]))
-        try:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor
-
-            with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
-                done = list(ex.map(_relax_job, [jobs[i] for i in order]))
-            out = [None] * len(jobs)
-            for i, r in zip(order, done):
-                out[i] = r
-            return out
-        except (OSError, RuntimeError, ValueError):  # no processes here: relax in this one
-            pass
-    return [_relax_job(j) for j in jobs]
+    """``relax_island`` of every job, in parallel processes when there is enough work
+    (SLIM runs on one core and holds the GIL), largest first; same result as one by one."""
+    order = sorted(range(len(jobs)), key=lambda i: -len(jobs[i][2]))
+    done = parallel_map(_relax_job, [jobs[i] for i in order], workers,
+                        parallel=sum(len(j[2]) for j in jobs) >= PARALLEL_MIN_FACES)
+    out = [None] * len(jobs)
+    for i, r in zip(order, done):
+        out[i] = r
+    return out
 
 
 def relax_islands(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, island: np.ndarray | None = None,

@@ -206,3 +206,18 @@ def test_fragment_islands_kept_when_over_the_budget_anyway():
                       max_islands=1)
     out, stats = _oriented([_piece(_flat), far], _speck_reference(), cfg)
     assert island_count(out) == 3 and stats["orient_fragment_islands"] is True
+
+
+def test_pieces_split_in_processes_match_one_by_one(monkeypatch):
+    import texture.orient as O
+
+    pieces = [_piece(_flat), _piece(_folded_sheet), _piece(lambda uv: _flat(uv) + [0.0, 0.0, 0.001])]
+    ref = _speck_reference()
+    serial = O.orient_pieces(pieces, ref, min_area=0.25, min_fragment_island=0.1)
+    monkeypatch.setattr(O, "PARALLEL_MIN_FACES", 0)
+    parallel = O.orient_pieces(pieces, ref, min_area=0.25, min_fragment_island=0.1)
+    assert serial[1] == parallel[1] and len(serial[0]) == len(parallel[0]) >= 4
+    for a, b in zip(serial[0], parallel[0]):
+        np.testing.assert_array_equal(a.uv, b.uv)
+        np.testing.assert_array_equal(a.faces, b.faces)
+        assert a.chart == b.chart
