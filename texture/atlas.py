@@ -314,9 +314,26 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
     # failure: 0.62 where a fresh guess found 0.69 on a bunny fit; one option set alone lost
     # the gain on a sphere's two caps), all in parallel
     layouts = [(pieces, None)] + cuts(CUT_ISLANDS, CUT_AXES, (None,))
-    plans = plan_layouts([arrays(ps) for ps, _ in layouts], resolution=cfg.resolution, padding=cfg.padding)
+    if len(layouts) == 1:
+        return _merge(pieces, cache), plan_layouts([arrays(pieces)], resolution=cfg.resolution,
+                                                   padding=cfg.padding)[0], stats
+    # xatlas's default options for every layout; the other option sets for the uncut islands
+    # and the best cut only (6 searches instead of 8: a quarter less time on 2 cores; on the
+    # bunny and inspired fits no other cut packed best without rotations)
+    plans = plan_layouts([arrays(ps) for ps, _ in layouts], resolution=cfg.resolution, padding=cfg.padding,
+                         candidates=PACK_CANDIDATES[:1])
+    top = max(range(1, len(plans)), key=lambda i: plans[i].utilization if plans[i] is not None else -1.0)
+    again = [0, top]
+    more = plan_layouts([arrays(layouts[i][0]) for i in again], resolution=cfg.resolution, padding=cfg.padding,
+                        candidates=PACK_CANDIDATES[1:])
+    for i, p in zip(again, more):
+        if p is not None and (plans[i] is None or p.utilization > plans[i].utilization):
+            p.attempts += plans[i].attempts if plans[i] is not None else 0
+            plans[i] = p
+        elif p is not None:
+            plans[i].attempts += p.attempts
     base = plans[0]
-    if base is None or len(layouts) == 1:
+    if base is None:
         return _merge(pieces, cache), base, stats
     stats["utilization_coarse_uncut"] = base.utilization
     stats["utilization_coarse_cuts"] = [p.utilization for p in plans[1:] if p is not None]

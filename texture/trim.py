@@ -92,12 +92,13 @@ def border_points(piece: Piece) -> np.ndarray:
 
 
 def covered_by(points: np.ndarray, projector: MeshProjector, tol: float,
-               banned: np.ndarray | None = None) -> np.ndarray:
+               banned: np.ndarray | None = None, proj=None) -> np.ndarray:
     """(N,) bool: the mesh lies within ``tol`` of each point, not beyond its border.
 
-    Faces touching a ``banned`` vertex (V,) of the mesh do not cover.
+    Faces touching a ``banned`` vertex (V,) of the mesh do not cover. ``proj``: the
+    points' projection onto the mesh (``max_distance=tol``), if already at hand.
     """
-    proj = projector.project(points, max_distance=tol)
+    proj = proj if proj is not None else projector.project(points, max_distance=tol)
     cov = (proj.distance < tol) & ~proj.on_boundary
     if banned is not None and banned.any() and cov.any():
         cov[cov] = ~banned[projector.faces[proj.face[cov]]].any(1)
@@ -136,7 +137,14 @@ def ownership_fields(pieces: list[Piece], cover_tol: float, banned: list[np.ndar
         for j, q in enumerate(pieces):
             if j == k or projectors[j] is None:
                 continue
-            cov = covered_by(p.xyz, projectors[j], cover_tol, banned[j])
+            # the projection does not change between the passes (only the bans do): kept in the cache
+            key = ("projection", id(p), id(q), cover_tol)
+            proj = cache.get(key) if cache is not None else None
+            if proj is None:
+                proj = projectors[j].project(p.xyz, max_distance=cover_tol)
+                if cache is not None:
+                    cache[key] = proj
+            cov = covered_by(p.xyz, projectors[j], cover_tol, banned[j], proj)
             if not cov.any():
                 continue
             s_j = trees[j].query(p.xyz[cov])[0] if trees[j] is not None else np.full(int(cov.sum()), far)
