@@ -332,3 +332,34 @@ def test_off_centre_layouts_searched_best_guess_first_until_the_target(monkeypat
     got = {i: p.utilization for i, p in enumerate(plans) if p is not None}
     assert got == {i: pytest.approx(guesses[i] + 0.01) for i in searched}
     assert all(guesses[i] >= target - PRUNE_MARGIN for i in searched)
+
+
+@pytest.mark.parametrize("target", [0.55, 0.6])
+def test_round_one_tries_other_options_for_all_layouts_until_the_target(sphere_run, monkeypatch, target):
+    """Round 1 packs every layout with xatlas's default options, then the other option sets:
+    for the uncut islands and the best cut only once a layout reached the target (0.55 here),
+    else for every layout. Each layout keeps its better plan."""
+    import texture.atlas as A
+    from texture.pack import PACK_CANDIDATES, Plan
+
+    calls = []
+    default = [0.50, 0.55, 0.52]  # uncut, cut of the largest cap, cut of the other
+    other = [0.58, 0.50, 0.51]  # without rotations: better for the uncut islands only
+
+    def plan(layouts, *, candidates, **k):
+        calls.append((len(layouts), candidates))
+        if candidates == PACK_CANDIDATES[:1]:
+            return [Plan(u, 1.0, dict(candidates[0]), 1) for u in default[:len(layouts)]]
+        return [Plan(u, 1.0, dict(candidates[0]), 1) for u in ([other[0], other[1]] if len(layouts) == 2 else other)]
+
+    monkeypatch.setattr(A, "plan_layouts", plan)
+    charts = load_charts(sphere_run / "charts.npz")
+    cfg = AtlasConfig(resolution=256, padding=2, target_utilization=target, relax=RelaxConfig(iterations=0))
+    monkeypatch.setattr(A, "_off_centre_plans", lambda layouts, cfg: [None] * len(layouts))  # round 2: nothing
+    trimmed = trim_charts(charts, cfg.trim).pieces
+    assert sum(int(uv_islands(p.faces, p.uv).max()) + 1 for p in trimmed if len(p.faces)) == 2  # two caps
+    _, plan_kept, stats = A._layout(trimmed, cfg)
+    assert calls == [(3, PACK_CANDIDATES[:1]), (2 if max(default) >= target else 3, PACK_CANDIDATES[1:])]
+    assert stats["utilization_coarse_uncut"] == 0.58 and stats["utilization_coarse_cuts"] == [0.55, 0.52]
+    # the best cut (0.55) does not gain split_gain over the uncut islands' better plan (0.58)
+    assert stats["split_islands"] == 0 and plan_kept.utilization == 0.58 and plan_kept.options == PACK_CANDIDATES[1]
