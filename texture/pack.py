@@ -192,10 +192,17 @@ class _Islands:
         # xatlas gets the outline faces over their own vertices (src: theirs -> ours)
         src, inverse = np.unique(x_faces, return_inverse=True)
         # vertex weight: area of its solid faces, so slivers xatlas drops never steer the fit
+        # ("solid" against the island's own median: outlines and whole islands mix)
         area = triangle_areas(self.uv, x_faces)
-        solid = area > SOLID_FACE_REL * np.median(area)
+        x_island = self._vert_island[x_faces[:, 0]]
+        order = np.argsort(x_island, kind="stable")
+        cuts = np.cumsum(np.bincount(x_island, minlength=self.n))[:-1]
+        median = np.zeros(self.n)
+        for i, a in enumerate(np.split(area[order], cuts)):
+            median[i] = np.median(a) if len(a) else 0.0
+        solid = area > SOLID_FACE_REL * median[x_island]
         weight = np.bincount(x_faces[solid].ravel(), np.repeat(area[solid], 3), len(self.uv))
-        return (self.uv[src], inverse.reshape(-1, 3), self._vert_island[x_faces[:, 0]]), src, weight
+        return (self.uv[src], inverse.reshape(-1, 3), x_island), src, weight
 
     @property
     def xatlas_mesh(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

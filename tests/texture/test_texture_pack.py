@@ -217,3 +217,25 @@ def test_packing_through_outlines_matches_packing_faces():
         got[outlines] = verify_packing(px / 256, faces, island, 256)[1]
     # xatlas sees the same regions either way: the same layout, up to the bisection's tolerance
     assert got[True] == pytest.approx(got[False], rel=0.02)
+
+
+def test_whole_island_beside_outlines_keeps_its_fit_weights():
+    """An island handed over whole (its UVs overlap themselves) among outlined ones: its small
+    faces are solid against its own median, not against the outlines' big triangles (which
+    are most of the faces here), so the fit still holds it."""
+    parts, faces, island, off = [], [], [], 0
+    for k in range(5):  # five holed rectangles: 8 outline triangles each
+        u, f = _grid_island(n=10, hole=True, shift=(12.0 * k, 0.0))
+        parts.append(u), faces.append(f + off), island.append(np.full(len(f), k))
+        off += len(u)
+    b_uv, b_f = _grid_island(n=2)  # 8 faces, dragged over themselves: kept whole
+    b_uv = 0.05 * b_uv + [0.0, 15.0]
+    b_uv[4] += [0.12, 0.0]
+    parts.append(b_uv), faces.append(b_f + off), island.append(np.full(len(b_f), 5))
+    uv, faces, island = np.concatenate(parts), np.concatenate(faces), np.concatenate(island)
+    isl = pack._Islands(uv, faces, island)
+    assert (isl.xatlas_mesh[2] < 5).sum() == 40 and (isl.xatlas_mesh[2] == 5).sum() == len(b_f)
+    assert isl.weight[np.unique(b_f + off)].sum() > 0
+    pk = pack_islands(uv, faces, island, resolution=256, padding=2)
+    assert pk.packer == "xatlas"
+    assert_valid_packing(pk, uv, faces, island)
