@@ -20,8 +20,8 @@ from .islands import unique_rows, uv_islands
 from .orient import Reference, orient_pieces
 from .clip import clip_mesh
 from .relax import RelaxConfig, relax_meshes
-from .pack import (PACK_CANDIDATES, PRUNE_MARGIN, Packing, default_workers, estimate_layouts, pack_islands,
-                   plan_layouts)
+from .pack import PACK_CANDIDATES, PRUNE_MARGIN, Packing, estimate_layouts, pack_islands, plan_layouts
+from .parallel import default_workers
 from .trim import Piece, TrimConfig, trim_charts
 from .uvmesh import Normalization, UVMesh, make_uv_mesh
 
@@ -127,7 +127,7 @@ def _split_shared(p: Piece, island: np.ndarray) -> Piece:
     return Piece(p.chart, p.xyz[uniq // n], p.uv[uniq // n], inverse.reshape(-1, 3))
 
 
-def relax_pieces(pieces: list[Piece], cfg: RelaxConfig) -> tuple[list[Piece], dict]:
+def relax_pieces(pieces: list[Piece], cfg: RelaxConfig, cache: dict | None = None) -> tuple[list[Piece], dict]:
     """Every island of ``pieces`` relaxed by :func:`texture.relax.relax_meshes` at one shared scale
     (all islands in parallel).
 
@@ -135,7 +135,7 @@ def relax_pieces(pieces: list[Piece], cfg: RelaxConfig) -> tuple[list[Piece], di
     and stats: the 3D-area weighted mean of ``tr g + tr g^-1 - 4`` at the isometric scale
     before and after, SLIM iterations, islands stopped by a border crossing.
     """
-    prepared = [(p, *_prepared(p)) if len(p.faces) else (p, p, None) for p in pieces]
+    prepared = [(p, *_prepared(p, cache)) if len(p.faces) else (p, p, None) for p in pieces]
     live = [(q, isl) for _, q, isl in prepared if isl is not None]
     stats = {"relax_iterations_max": 0, "relax_stopped_by_crossing": 0}
     if cfg.iterations <= 0 or not live:
@@ -285,12 +285,9 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
         _, uv, faces, _, island = _merge(ps, cache)
         return uv, faces, island
 
-    def island_count(ps):
-        return sum(int(_prepared(p, cache)[1].max()) + 1 for p in ps if len(p.faces))
-
     stats = {"split_islands": 0}
     ranked = []  # (UV area, piece, island)
-    if cfg.max_islands > 0 and island_count(pieces) + 1 <= cfg.max_islands:
+    if cfg.max_islands > 0 and island_count(pieces, cache) + 1 <= cfg.max_islands:
         for k, p in enumerate(pieces):
             if len(p.faces):
                 area = np.bincount(_prepared(p, cache)[1], weights=p.uv_area())  # same faces, same ids
@@ -303,7 +300,7 @@ def _layout(pieces: list[Piece], cfg: AtlasConfig):
             for long_axis in axes:
                 for fraction in fractions:
                     cut = cut_island(pieces, k, i, long_axis, fraction)
-                    if island_count(cut) <= cfg.max_islands:
+                    if island_count(cut, cache) <= cfg.max_islands:
                         out.append((cut, {"island_rank": rank, "across_long_axis": long_axis,
                                           "area_fraction": 0.5 if fraction is None else fraction,
                                           "through_centroid": fraction is None}))
@@ -363,12 +360,13 @@ def _welded(p: Piece) -> Piece:
     return Piece(p.chart, p.xyz[first], p.uv[first], inverse.reshape(-1)[p.faces])
 
 
-def island_count(pieces: list[Piece]) -> int:
-    """Islands the pieces make (as :func:`_merge` numbers them)."""
-    return sum(int(_prepared(p)[1].max()) + 1 for p in pieces if len(p.faces))
+def island_count(pieces: list[Piece], cache: dict | None = None) -> int:
+    """Islands the pieces make (as :func:`_merge` numbers them); ``cache`` as for :func:`_prepared`."""
+    return sum(int(_prepared(p, cache)[1].max()) + 1 for p in pieces if len(p.faces))
 
 
-def _oriented(pieces: list[Piece], reference: Reference, cfg: AtlasConfig) -> tuple[list[Piece], dict]:
+def _oriented(pieces: list[Piece], reference: Reference, cfg: AtlasConfig,
+              cache: dict | None = None) -> tuple[list[Piece], dict]:
     """:func:`orient_pieces` with fragment islands (``cfg.orient_fragment_island``) only where
     they keep the atlas within ``cfg.max_islands``, or where it exceeds that without them too.
 
@@ -385,9 +383,9 @@ def _oriented(pieces: list[Piece], reference: Reference, cfg: AtlasConfig) -> tu
     # orientation splits and reverses islands but never merges them: when the pieces already
     # have more islands than the budget, orienting again without fragment islands cannot
     # get within it (the 13-part truck: 7.5 s saved)
-    if 0 < cfg.max_islands < island_count(out) and island_count(pieces) <= cfg.max_islands:
+    if 0 < cfg.max_islands < island_count(out, cache) and island_count(pieces, cache) <= cfg.max_islands:
         plain, plain_stats = orient_pieces(pieces, reference, min_area)
-        if island_count(plain) <= cfg.max_islands:
+        if island_count(plain, cache) <= cfg.max_islands:
             return plain, {**plain_stats, "orient_fragment_islands": False}
     return out, stats
 
@@ -427,10 +425,11 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
     trimmed = trim_charts(charts, cfg.trim)
     t_trim = time.perf_counter()
     pieces, orient_stats = trimmed.pieces, {}
+    prepared: dict = {}  # _prepared pieces, shared by the island counts and the relaxation
     if reference is not None and cfg.orient:
-        pieces, orient_stats = _oriented(pieces, reference, cfg)
+        pieces, orient_stats = _oriented(pieces, reference, cfg, prepared)
     t1 = time.perf_counter()
-    relaxed, relax_stats = relax_pieces(pieces, cfg.relax)
+    relaxed, relax_stats = relax_pieces(pieces, cfg.relax, prepared)
     t_relax = time.perf_counter()
     merged, plan, split_stats = _layout(relaxed, cfg)
     if relaxed is not pieces and 0 < cfg.target_utilization:

@@ -41,6 +41,7 @@ from .clip import clip_mesh
 from .geometry import MeshProjector
 from .harness import FOLD_TOL, facet_normals
 from .islands import uv_islands
+from . import parallel
 from .parallel import parallel_map
 from .trim import Piece
 
@@ -320,10 +321,6 @@ def _without_specks(part: _Part, min_area: float) -> _Part:
     return part.keep(~small[island]) if small.any() else part
 
 
-#: below this many faces in all, pieces are split in this process (starting workers costs more)
-PARALLEL_MIN_FACES = 20_000
-
-
 def _split_job(k: int, shared):
     pieces, reference, min_area, max_dropped_fraction, min_fragment_island = shared
     p = pieces[k]
@@ -348,7 +345,7 @@ def orient_pieces(pieces: list[Piece], reference: Reference, min_area: float,
     # pieces are independent: split in parallel processes, the reference shared by the fork
     shared = (pieces, reference, min_area, max_dropped_fraction, min_fragment_island)
     splits = parallel_map(_split_job, list(range(len(pieces))), shared=shared,
-                          parallel=sum(len(p.faces) for p in pieces) >= PARALLEL_MIN_FACES)
+                          parallel=sum(len(p.faces) for p in pieces) >= parallel.MIN_FACES)
     for a, b, d, f, g, k in splits:
         outward.append(a)
         inward.append(b)

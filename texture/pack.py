@@ -36,7 +36,7 @@ import numpy as np
 
 from .geometry import triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges
-from .parallel import default_workers, parallel_map  # noqa: F401 (default_workers: re-exported)
+from .parallel import parallel_map
 from .raster import iter_hits
 
 #: largest allowed distance (texels) between xatlas's placement and the re-placed island.
@@ -62,7 +62,6 @@ COARSE_BISECT_TOL = 0.01
 #: this far below what it must reach: on 16 cut layouts of a face and a t-shirt fit the bounded
 #: search ended between 0.01 below and 0.065 above the first guess
 PRUNE_MARGIN = 0.07
-OUTLINES = True
 
 
 @dataclass
@@ -174,7 +173,7 @@ class _Islands:
     whole island with the same motion.
     """
 
-    def __init__(self, uv, faces, island, outlines: bool | None = None):
+    def __init__(self, uv, faces, island, outlines: bool = True):
         self.uv, self.faces, self.island = uv, faces, island
         self.n = int(island.max()) + 1
         vert_island = np.full(len(uv), -1)
@@ -184,7 +183,7 @@ class _Islands:
         used = np.flatnonzero(vert_island >= 0)
         order = used[np.argsort(vert_island[used], kind="stable")]
         self.verts = np.split(order, np.cumsum(np.bincount(vert_island[used], minlength=self.n))[:-1])
-        self._vert_island, self._outlines = vert_island, OUTLINES if outlines is None else outlines
+        self._vert_island, self._outlines = vert_island, outlines
 
     @cached_property
     def _xatlas(self):
@@ -434,8 +433,7 @@ def estimate_layouts(layouts: list[tuple[np.ndarray, np.ndarray, np.ndarray]], *
                      workers: int | None = None) -> list[tuple[float, float] | None]:
     """Per layout ``(uv, faces, island)``, one xatlas call: (the utilisation its first guess
     implies, the guess itself in coarse texels per unit: a ``start`` for :func:`plan_layouts`),
-    or None.
-    The bounded search ends near it (see ``PRUNE_MARGIN``): a cheap way to rank layouts."""
+    or None. The bounded search ends near it (see ``PRUNE_MARGIN``): a rough way to rank layouts."""
     jobs = [(uv, faces, island, resolution, padding, dict(options or {})) for uv, faces, island in layouts]
     return parallel_map(_estimate_job, jobs, workers)
 

@@ -12,6 +12,9 @@ from typing import Any, Callable
 
 _shared: Any = None
 
+#: below this many faces in all, work is done in this process (starting workers costs more)
+MIN_FACES = 20_000
+
 
 def default_workers() -> int:
     """Processes for parallel work: the CPU count, at most 4."""

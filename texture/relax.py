@@ -32,6 +32,7 @@ from mna import distortion as D
 from .distortion_faces import face_geometry
 from .geometry import triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
+from . import parallel
 from .parallel import parallel_map
 
 
@@ -204,10 +205,6 @@ def isometric_scale(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> float
     return float(np.sqrt(triangle_areas(xyz, faces).sum() / uv_total)) if uv_total > 0 else 1.0
 
 
-#: below this many faces in all, islands are relaxed in this process (starting workers costs more)
-PARALLEL_MIN_FACES = 20_000
-
-
 def _relax_job(job, _shared=None):
     xyz, uv, faces, cfg, check_crossings = job
     return relax_island(xyz, uv, faces, cfg, check_crossings)
@@ -218,7 +215,7 @@ def _run_jobs(jobs: list, workers: int | None) -> list:
     (SLIM runs on one core and holds the GIL), largest first; same result as one by one."""
     order = sorted(range(len(jobs)), key=lambda i: -len(jobs[i][2]))
     done = parallel_map(_relax_job, [jobs[i] for i in order], workers,
-                        parallel=sum(len(j[2]) for j in jobs) >= PARALLEL_MIN_FACES)
+                        parallel=sum(len(j[2]) for j in jobs) >= parallel.MIN_FACES)
     out = [None] * len(jobs)
     for i, r in zip(order, done):
         out[i] = r
@@ -245,12 +242,10 @@ def relax_meshes(meshes: list[tuple], cfg: RelaxConfig | None = None, scale: flo
     cfg = cfg or RelaxConfig()
     s = float(scale)
     jobs, where = [], []  # where: (mesh, vertex ids) of each job
-    prepared = []
     for m, (xyz, uv, faces, island) in enumerate(meshes):
         faces = np.asarray(faces, np.int64)
         if island is None:
             island = uv_islands(faces, uv)
-        prepared.append((xyz, faces))
         order = np.argsort(island, kind="stable")
         bounds = np.searchsorted(island[order], np.arange(int(island.max()) + 2)) if len(island) else [0]
         for k in range(len(bounds) - 1):

@@ -214,7 +214,9 @@ def test_pieces_split_in_processes_match_one_by_one(monkeypatch):
     pieces = [_piece(_flat), _piece(_folded_sheet), _piece(lambda uv: _flat(uv) + [0.0, 0.0, 0.001])]
     ref = _speck_reference()
     serial = O.orient_pieces(pieces, ref, min_area=0.25, min_fragment_island=0.1)
-    monkeypatch.setattr(O, "PARALLEL_MIN_FACES", 0)
+    import texture.parallel as P
+
+    monkeypatch.setattr(P, "MIN_FACES", 0)
     parallel = O.orient_pieces(pieces, ref, min_area=0.25, min_fragment_island=0.1)
     assert serial[1] == parallel[1] and len(serial[0]) == len(parallel[0]) >= 4
     for a, b in zip(serial[0], parallel[0]):

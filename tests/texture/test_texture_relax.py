@@ -152,7 +152,9 @@ def test_meshes_relaxed_in_processes_match_one_by_one(monkeypatch):
     meshes = [(xyz_c, uv_c, f_c, None), (xyz_s, uv_s, f_s, np.zeros(len(f_s), np.int64))]
     cfg = RelaxConfig(iterations=5, min_gain=1e-8)
     serial = R.relax_meshes(meshes, cfg, scale=1.3, workers=1)
-    monkeypatch.setattr(R, "PARALLEL_MIN_FACES", 0)
+    import texture.parallel as P
+
+    monkeypatch.setattr(P, "MIN_FACES", 0)
     parallel = R.relax_meshes(meshes, cfg, scale=1.3, workers=2)
     for (u1, s1), (u2, s2) in zip(serial, parallel):
         np.testing.assert_array_equal(u1, u2)
