@@ -35,6 +35,7 @@ SWEEP_MAX_ITERATIONS = (1, 4)
 COLUMNS = (("charts", "charts", "{:d}"), ("seam_length", "seam length", "{:.2f}"),
            ("distortion_metric", "distortion metric", "{:.3f}"), ("distortion_conformal", "conformal", "{:.3f}"),
            ("distortion_area", "area", "{:.3f}"), ("flipped_area_percent", "flipped %", "{:.3f}"),
+           ("mirrored_area_percent", "mirrored %", "{:.1f}"),
            ("folded_area_percent", "folded %", "{:.3f}"),
            ("orientation_undecided_area_percent", "undecided %", "{:.3f}"),
            ("uv_overlap_percent", "overlap %", "{:.3f}"),

@@ -20,7 +20,8 @@ from .relax import RelaxConfig
 from .charts import load_charts
 from .export import export_textured
 from .harness import measure
-from .textures import bake, check_size, source_colors, checker_frequency, checker_image, uvgrid_image
+from .textures import (SQUARE_SIZE, bake, check_size, checker_image, source_colors, squares_per_uv_unit,
+                       uv_grid_image)
 from .uvmesh import Normalization, UVMesh, load_uv_mesh, unit_ball_normalization
 from .xatlas_uv import XatlasOptions, check_mesh, unwrap
 
@@ -93,16 +94,16 @@ def reference_points(mesh, points, norm: Normalization, count: int = 25000, seed
 
 def make_texture(kind: str, mesh_unit: UVMesh, size: int, padding: int, source=None,
                  square_size: float | None = None) -> np.ndarray:
-    """``checker`` / ``uvgrid`` (3D-size-matched, see textures) or ``bake`` (needs ``source``, unit frame)."""
-    from .textures import SQUARE_SIZE
+    """``checker`` / ``uvgrid`` (3D-size-matched, see textures) or ``bake`` (needs ``source``, unit frame).
 
+    ``square_size`` is the checker square's side in the unit-ball frame (``None``: ``SQUARE_SIZE``).
+    """
     if kind not in TEXTURES:
         raise InputError(f"unknown texture {kind!r}; choose from {', '.join(TEXTURES)}")
-    freq = checker_frequency(mesh_unit, size, square_size or SQUARE_SIZE)
-    if kind == "checker":
-        return checker_image(size, freq)
-    if kind == "uvgrid":
-        return uvgrid_image(size, freq)
+    if kind in ("checker", "uvgrid"):
+        freq = squares_per_uv_unit(mesh_unit.vertices, mesh_unit.faces, mesh_unit.uv,
+                                   SQUARE_SIZE if square_size is None else square_size)
+        return checker_image(freq, size) if kind == "checker" else uv_grid_image(freq, size)
     if source is None:
         raise InputError("--texture bake needs the run's input mesh (RUN/config.yaml 'input'), which is not a readable mesh")
     return bake(mesh_unit, source, size, padding)
