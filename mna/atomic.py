@@ -52,20 +52,20 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Strict JSON (RFC 8259): NaN and infinities are written as ``null``, which every parser reads."""
-    text = json.dumps(_finite(obj), indent=2, sort_keys=False, default=_json_default, allow_nan=False)
+    text = json.dumps(strict_json(obj), indent=2, sort_keys=False, default=_json_default, allow_nan=False)
     write_text(path, text + "\n")
 
 
-def _finite(o: Any) -> Any:
+def strict_json(o: Any) -> Any:
     """``o`` with every non-finite float (also numpy's, and inside arrays) replaced by None."""
     if isinstance(o, float):
         return o if o == o and o not in (float("inf"), float("-inf")) else None
     if isinstance(o, dict):
-        return {k: _finite(v) for k, v in o.items()}
+        return {k: strict_json(v) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
-        return [_finite(v) for v in o]
+        return [strict_json(v) for v in o]
     if hasattr(o, "tolist") and not isinstance(o, (str, bytes)):
-        return _finite(o.tolist())
+        return strict_json(o.tolist())
     return o
 
 

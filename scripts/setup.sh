@@ -20,6 +20,14 @@ if [ ${#missing[@]} -gt 0 ]; then
     fi
 fi
 
+# Headless Chromium checks the HTML report as a browser lays it out (tests skip without it).
+if ! command -v chromium >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+    echo "[setup] installing chromium (report layout tests)"
+    (export DEBIAN_FRONTEND=noninteractive; apt-get update -qq >/dev/null && \
+        apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
+        || echo "[setup] warning: could not install chromium; report layout tests will skip" >&2
+fi
+
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
     echo "[setup] creating .venv"

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from mna.atomic import atomic_path
+from mna.errors import InputError
 
 from .normals import Shading, open_surface, shading_normals
 from .uvmesh import UVMesh, weld_ids
@@ -38,9 +39,16 @@ ROUGHNESS = 0.8
 
 
 def asset_mesh(mesh: UVMesh) -> UVMesh:
-    """``mesh`` with positions and UVs rounded to float32 (what the GLB stores)."""
-    return UVMesh(mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces,
-                  mesh.uv.astype(np.float32).astype(np.float64))
+    """``mesh`` with positions and UVs rounded to what the GLB stores (float32, v flipped).
+
+    Raises ``InputError`` when a coordinate exceeds float32's range (about 3.4e38).
+    """
+    limit = float(np.finfo(np.float32).max)
+    if np.abs(mesh.vertices).max() > limit or np.abs(mesh.uv).max() > limit:
+        raise InputError("coordinates exceed the float32 range glTF stores (about 3.4e38): scale the mesh down")
+    # UVs on multiples of 2^-24: then v and glTF's 1 - v are both exact in float32 (in [0, 1])
+    uv = (np.round(mesh.uv * 2.0 ** 24) / 2.0 ** 24).astype(np.float32).astype(np.float64)
+    return UVMesh(mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces, uv)
 
 
 def shading(mesh: UVMesh) -> Shading:

@@ -55,9 +55,11 @@ def run_demo(args: argparse.Namespace) -> int:
         timings[name] = time.perf_counter() - t0
         if code != 0:
             raise MnaError(f"demo stage '{name}' failed with exit code {code}")
-    from render.report import write_report
+    from render.report import atlas_summary, write_report
 
-    report = write_report(out, title=f"mna demo: {args.shape}, {args.charts} charts")
+    charts, islands = atlas_summary(out)
+    report = write_report(out, title=f"mna demo: {args.shape}, a neural atlas of {charts or args.charts} charts "
+                                     f"unwrapped into {islands if islands is not None else '?'} UV islands")
     total = sum(timings.values())
     print("stage seconds: " + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()) + f"; total {total:.0f}")
     print(f"report: {report.html} and {report.markdown.name}")
