@@ -106,7 +106,7 @@ def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane: tu
     field[np.abs(field) <= SNAP_REL * scale] = 0.0
     if plane is not None and len(faces):
         attrs, field = _snap(attrs, faces, field, plane)
-    inside, on_line = field > 0, field == 0
+    inside = field > 0
     fin = inside[faces]
     fout = (field < 0)[faces]
     n_in, n_out = fin.sum(1), fout.sum(1)

@@ -212,6 +212,8 @@ def _texel_density(geom: FaceGeometry) -> tuple[np.ndarray, float, float]:
     rho = np.sqrt(np.abs(geom.uv_area) / np.maximum(geom.area_3d, 1e-300))
     rho[geom.area_3d <= 0] = np.nan
     ok = np.isfinite(rho) & geom.valid
+    if not ok.any():  # every UV triangle degenerate: no density to speak of
+        return rho, float("nan"), float("nan")
     w = geom.area_3d[ok]
     mean = float((rho[ok] * w).sum() / w.sum())
     std = float(np.sqrt(((rho[ok] - mean) ** 2 * w).sum() / w.sum()))

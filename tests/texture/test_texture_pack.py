@@ -73,7 +73,8 @@ def test_similarity_fit_prefers_rotation_unless_clearly_mirrored():
     np.testing.assert_allclose(fit.translation, [3.0, 3.0])
 
 
-def _grid_island(G, half, offset=(0.0, 0.0)):
+def _centred_grid(G, half, offset=(0.0, 0.0)):
+    """A G x G vertex grid over [-half, half]^2 (+ offset)."""
     lin = np.linspace(-half, half, G)
     u, v = np.meshgrid(lin, lin, indexing="xy")
     return np.column_stack([u.ravel(), v.ravel()]) + offset, grid_faces(G)
@@ -83,15 +84,15 @@ def _awkward_islands():
     """A dominant island with a UV fold (flipped triangles), a rotated one, a degenerate
     (collinear) one and small ones, all over the same chart-local UV range."""
     parts = []
-    uv, f = _grid_island(12, 1.0)
+    uv, f = _centred_grid(12, 1.0)
     fold = uv[:, 0] > 0.6  # fold the right strip back over itself: flipped triangles
     uv[fold, 0] = 1.2 - uv[fold, 0]
     parts.append((uv, f))
-    uv, f = _grid_island(6, 0.4)
+    uv, f = _centred_grid(6, 0.4)
     parts.append((uv @ _rot(0.7).T, f))
     parts.append((np.array([[0.0, 0.0], [0.5, 0.5], [1.0, 1.0]]), np.array([[0, 1, 2]])))  # zero area
     for s in (0.15, 0.1):
-        parts.append(_grid_island(4, s))
+        parts.append(_centred_grid(4, s))
     uvs, faces, island, off = [], [], [], 0
     for i, (u, f) in enumerate(parts):
         uvs.append(u)
