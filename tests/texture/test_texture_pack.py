@@ -240,3 +240,26 @@ def test_whole_island_beside_outlines_keeps_its_fit_weights():
     pk = pack_islands(uv, faces, island, resolution=256, padding=2)
     assert pk.packer == "xatlas"
     assert_valid_packing(pk, uv, faces, island)
+
+
+def test_packed_islands_are_never_mirrored():
+    """xatlas's 90-degree turn is a transpose (a mirror): among many long islands it turns some.
+    The packing must keep every island's orientation (signed UV area keeps its sign)."""
+    rng = np.random.default_rng(3)
+    uvs, faces, island, off = [], [], [], 0
+    for k in range(14):
+        u, f = _centred_grid(5, 1.0)
+        u = u * [rng.uniform(1.5, 3.0), rng.uniform(0.3, 0.6)]  # long and thin: turning helps packing
+        u = u @ _rot(rng.uniform(0, np.pi)).T
+        uvs.append(u)
+        faces.append(f + off)
+        island.append(np.full(len(f), k))
+        off += len(u)
+    uv, faces, island = np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
+    isl = pack._Islands(uv, faces, island)
+    raw = pack.plan_packing(uv, faces, island, resolution=256, padding=2)
+    assert pack.mirrored_islands(isl, raw.uv), "the plan (turns allowed) mirrors some island"
+    packed = pack.pack_islands(uv, faces, island, resolution=256, padding=2)
+    assert pack.mirrored_islands(isl, packed.uv) == []
+    assert verify_packing(packed.uv, faces, island, 256)[0] == 0
+    assert packed.utilization > 0.3
