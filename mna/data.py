@@ -38,7 +38,7 @@ def check_file_format(path: Path) -> None:
         head = fh.read(len(magic))
     if head != magic:
         kind = path.suffix.lower().lstrip(".").upper()
-        raise InputError(f"{path.name} is not a {kind} file (it does not start with {magic!r}); "
+        raise InputError(f"cannot read {path.name}: not a {kind} file (it does not start with {magic!r}); "
                          f"is the extension right?")
 
 
