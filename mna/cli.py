@@ -40,8 +40,8 @@ BUG_LINE = "mna: this is a bug, please report it (MNA_DEBUG=1 shows the tracebac
 #: exceptions that mean bad input or environment, not a bug in mna
 INPUT_ERRORS = (ValueError, TypeError, OSError, MemoryError)
 #: path arguments that must not be empty (``-o ""`` would silently mean the current folder)
-PATH_ARGS = {"out": "-o/--out", "run": "RUN", "input": "INPUT", "mesh": "MESH", "checkpoint": "CHECKPOINT",
-             "config": "--config", "reference": "--reference", "root": "--root"}
+PATH_ARGS = {"out": "-o/--out", "run": "RUN", "runs": "RUN", "input": "INPUT", "mesh": "MESH",
+             "checkpoint": "CHECKPOINT", "config": "the config path", "reference": "--reference", "root": "--root"}
 
 
 class _Parser(argparse.ArgumentParser):
