@@ -9,7 +9,7 @@ setup:
 	@bash scripts/setup.sh
 
 demo: setup
-	$(VENV_BIN)/mna demo -o $(DEMO_OUT)
+	$(VENV_BIN)/mna demo -o $(DEMO_OUT) --overwrite
 
 test: setup lint
 	$(VENV_BIN)/python -m pytest -q -ra tests

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from mna.errors import MnaError
@@ -77,14 +78,26 @@ def _int_arg(value: str, name: str, minimum: int) -> int:
     return v
 
 
+def _positive_float(value: float | None, name: str) -> float | None:
+    """None (the default) or a finite number > 0; 0 is refused, not read as "the default"."""
+    if value is None:
+        return None
+    if not (math.isfinite(value) and value > 0):
+        raise MnaError(f"{name} must be a positive, finite number, got {value}")
+    return value
+
+
 def run_export(args: argparse.Namespace) -> int:
     from texture.pipeline import export_run
     from texture.textures import check_size
 
+    square_size = _positive_float(args.square_size, "--square-size")
+    if args.max_islands < 0:
+        raise MnaError(f"--max-islands must be >= 0, got {args.max_islands}")
     size = check_size(args.size)
     padding = _int_arg(args.padding, "--padding", 0)
     relax = _int_arg(args.relax, "--relax", 0)
-    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size,
+    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=square_size,
                    max_islands=args.max_islands, relax=relax)
     a, m = r["atlas"], r["uv_metrics"]
     print(f"atlas: {a['islands']} islands from {a['charts_used']} charts, seam length {m['seam_length']:.2f}, "
