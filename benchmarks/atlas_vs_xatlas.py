@@ -28,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mna.atomic import write_text  # noqa: E402
+from mnacore.atomic import write_text  # noqa: E402
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
@@ -69,8 +69,9 @@ def harness_on_charts(run: Path) -> float:
     """The harness's distortion_metric on the run's own chart grid mesh (to set beside the fit's)."""
     import numpy as np
 
+    from mnacore.frame import Normalization
+    from mnacore.uvmesh import make_uv_mesh
     from texture.harness import measure
-    from texture.uvmesh import Normalization, make_uv_mesh
 
     with np.load(run / "charts.npz") as z:
         mesh = make_uv_mesh(z["vertices"], z["faces"], z["vertex_uv"])

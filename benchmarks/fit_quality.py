@@ -97,7 +97,7 @@ def table(rows: list[dict], oracle: dict) -> str:
 
 def write_section(name: str, text: str) -> None:
     """Replace (or append) the ``## name`` section of RESULTS.md, re-read just before writing."""
-    from mna.atomic import write_text
+    from mnacore.atomic import write_text
 
     current = RESULTS.read_text() if RESULTS.is_file() else "# Benchmark results\n"
     pattern = re.compile(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)

@@ -30,13 +30,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from render.backend import available_variants, import_mitsuba, use_variant  # noqa: E402
+from render.images import write_png  # noqa: E402
 from render.meshes import UVMesh, vertex_normals, write_ply  # noqa: E402
 from render.mitsuba_scene import material_bitmap, scene_dict, to_mitsuba  # noqa: E402
 from render.pipeline import framing_for  # noqa: E402
-from texture.textures import checker_image, squares_per_uv_unit  # noqa: E402
-from render.images import write_png  # noqa: E402
 from scenes.cameras import camera_rig  # noqa: E402
 from scenes.presets import load_preset  # noqa: E402
+from texture.textures import checker_image, squares_per_uv_unit  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 
@@ -145,7 +145,7 @@ def section(res: int, spps: list[int], results: dict, preview, mach: str, tris: 
 
 def write_section(text: str) -> None:
     """Replace (or append) the ``## render`` section of RESULTS.md, re-reading it just before writing."""
-    from mna.atomic import write_text
+    from mnacore.atomic import write_text
 
     current = RESULTS.read_text() if RESULTS.is_file() else "# Benchmark results\n"
     pattern = re.compile(r"^## render\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)

@@ -32,7 +32,7 @@ import torch  # noqa: E402
 import trimesh  # noqa: E402
 
 from mna import shapes, train_config  # noqa: E402
-from mna.atomic import write_text  # noqa: E402
+from mnacore.atomic import write_text  # noqa: E402
 
 SECTION = "## train_throughput"
 

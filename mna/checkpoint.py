@@ -15,8 +15,8 @@ from typing import Any
 
 import torch
 
-from mna.atomic import atomic_path
-from mna.errors import MnaError
+from mnacore.atomic import atomic_path
+from mnacore.errors import MnaError
 
 _SCALARS = (bool, int, float, str, bytes, type(None), torch.Tensor, torch.dtype, torch.device)
 

@@ -13,14 +13,13 @@ Exit codes and errors (never a traceback unless ``MNA_DEBUG=1``):
 """
 from __future__ import annotations
 
-import mna  # noqa: F401  (sets OMP_WAIT_POLICY before anything imports torch)
-
 import argparse
 import importlib
 import os
 import signal
 import sys
 
+import mna  # noqa: F401  (sets OMP_WAIT_POLICY before anything imports torch)
 from mna.interrupt import Terminated, exit_code, on_sigterm_raise
 
 COMMAND_MODULES = (
@@ -63,7 +62,7 @@ def _check_paths(args: argparse.Namespace) -> None:
         value = getattr(args, name, None)
         values = value if isinstance(value, list) else [value]
         if any(isinstance(v, str) and not v.strip() for v in values):
-            from mna.errors import MnaError
+            from mnacore.errors import MnaError
 
             raise MnaError(f"{label} must not be empty")
 

@@ -17,9 +17,9 @@ from torch import nn
 
 from mna.checkpoint import read_state
 from mna.encoders import build_encoder
-from mna.errors import MnaError
 from mna.model import BatchedLinear, NeuralAtlas
 from mna.train_config import TrainConfig, from_dict
+from mnacore.errors import MnaError
 
 #: tag stored in every training checkpoint (tells it apart from a per-shape fit's).
 CHECKPOINT_FORMAT = "mna-train-1"

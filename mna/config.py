@@ -9,7 +9,7 @@ from typing import Any
 
 import yaml
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 @dataclass
@@ -301,7 +301,7 @@ def _coerce(value: Any, default: Any, where: str) -> Any:
 
 
 def save_yaml(path: str | Path, data: dict) -> None:
-    from mna.atomic import write_text
+    from mnacore.atomic import write_text
 
     write_text(path, yaml.safe_dump(data, sort_keys=False))
 

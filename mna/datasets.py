@@ -31,9 +31,10 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from mna.data import MESH_EXTS, POINT_EXTS, Normalization, Surface, load_surface
-from mna.errors import InputError, MnaError
+from mna.data import MESH_EXTS, POINT_EXTS, Surface, load_surface
 from mna.train_config import TrainConfig
+from mnacore.errors import InputError, MnaError
+from mnacore.frame import Normalization
 
 POINTCLOUD_FILE = "pointcloud.npz"
 POINTS_KEY = "points"

@@ -16,7 +16,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 #: torchvision's ImageNet ResNet-18 checkpoint file name (torch hub cache, ``checkpoints/``).
 RESNET18_IMAGENET = "resnet18-f37072fd.pth"

@@ -16,10 +16,10 @@ import torch
 from mna.config import FitConfig
 from mna.data import Surface
 from mna.inference import uniform_uv
-from mna.errors import MnaError
 from mna.interrupt import graceful_stop
 from mna.model import NeuralAtlas, flush_denormals
 from mna.objective import atlas_losses
+from mnacore.errors import MnaError
 
 
 def resolve_device(name: str) -> torch.device:

@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from mna.model import NeuralAtlas, flush_denormals
+from mnacore.grid import grid_faces, grid_uv
 
 #: samples per chart per forward chunk at inference.
 CHUNK = 16384
@@ -128,22 +129,6 @@ class ChartGrid(NamedTuple):
     grid_index: np.ndarray  # (V,)
 
 
-def grid_uv(resolution: int) -> np.ndarray:
-    """``(G, G, 2)`` grid: ``uv[i, j] = (u_j, v_i)``, ``u_j = -1 + 2 j / (G - 1)``."""
-    t = np.linspace(-1.0, 1.0, resolution)
-    v, u = np.meshgrid(t, t, indexing="ij")
-    return np.stack([u, v], -1)
-
-
-def grid_triangles(resolution: int) -> np.ndarray:
-    """``(2 (G-1)^2, 3)`` triangles of one chart grid, counter-clockwise in UV (u right, v up)."""
-    G = resolution
-    i, j = np.meshgrid(np.arange(G - 1), np.arange(G - 1), indexing="ij")
-    a = (i * G + j).ravel()
-    b, c, d = a + 1, a + G + 1, a + G  # (i,j+1), (i+1,j+1), (i+1,j)
-    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-
-
 def extract_grid(model: NeuralAtlas, resolution: int, tau: float = 0.5, z: torch.Tensor | None = None) -> ChartGrid:
     """Evaluate every chart on a ``G x G`` grid; keep triangles whose 3 vertices are in-domain."""
     device = next(model.parameters()).device
@@ -153,7 +138,7 @@ def extract_grid(model: NeuralAtlas, resolution: int, tau: float = 0.5, z: torch
     ev = evaluate(model, uv, z)
     xyz = ev.x[:, 0].cpu().double().numpy().reshape(K, G, G, 3)
     occ = ev.occ[:, 0].cpu().double().numpy().reshape(K, G, G)
-    tri = grid_triangles(G)
+    tri = grid_faces(G)
     inside = occ.reshape(K, -1) > tau
     all_faces = (tri[None] + (np.arange(K) * G * G)[:, None, None]).reshape(-1, 3)
     face_chart = np.repeat(np.arange(K), len(tri))

@@ -8,7 +8,7 @@ from __future__ import annotations
 import torch
 from torch.nn import functional as F
 
-from mna import distortion
+from mnacore import distortion
 
 
 def positive_labels(nearest_index: torch.Tensor, total: int) -> torch.Tensor:

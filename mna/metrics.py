@@ -1,6 +1,6 @@
 """DESIGN's metrics for a fitted atlas, in the unit-ball frame (one implementation for all methods).
 
-Point metrics (Chamfer, F-score) live in the torch-free :mod:`mna.pointmetrics` and are
+Point metrics (Chamfer, F-score) live in the torch-free :mod:`mnacore.pointmetrics` and are
 re-exported here; this module adds the analytic distortions of a neural atlas.
 """
 from __future__ import annotations
@@ -9,10 +9,10 @@ from typing import NamedTuple
 
 import torch
 
-from mna import distortion
 from mna.inference import evaluate, uniform_uv
 from mna.model import NeuralAtlas
-from mna.pointmetrics import FSCORE_THRESHOLD, PointMetrics, chamfer_fscore, sample_mesh  # noqa: F401
+from mnacore import distortion
+from mnacore.pointmetrics import FSCORE_THRESHOLD, PointMetrics, chamfer_fscore, sample_mesh  # noqa: F401
 
 #: a chart whose domain covers less than this percentage of its square counts as degenerate.
 DEGENERATE_OCCUPANCY = 0.5

@@ -21,17 +21,17 @@ import numpy as np
 import torch
 
 from mna import config as config_mod
-from mna.atomic import write_json
 from mna.conditional import ConditionalAtlas, LoadedCheckpoint, bake, load_checkpoint
 from mna.config import FitConfig
 from mna.data import load_surface
-from mna.errors import MnaError
 from mna.fit import Fitter, resolve_device
 from mna.inference import estimate_c, extract_grid, rejection_sample
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas
 from mna.run import extract_run, prepare_output, run_config_dict, save_checkpoint
 from mna.train_config import TrainConfig
+from mnacore.atomic import write_json
+from mnacore.errors import MnaError
 
 IMAGE_EXTS = {".jpg", ".jpeg", ".png"}
 PCL_METRICS = ("chamfer_pcl", "fscore_pcl")

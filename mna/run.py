@@ -19,16 +19,17 @@ import torch
 import trimesh
 
 from mna import config as config_mod
-from mna.atomic import atomic_path, write_json
 from mna.checkpoint import read_state, write_state
 from mna.config import FitConfig
-from mna.data import Normalization, Surface, load_surface
-from mna.errors import MnaError
+from mna.data import Surface, load_surface
 from mna.fit import Fitter, resolve_device
 from mna.inference import estimate_c, extract_grid, rejection_sample
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas, flush_denormals
 from mna.runfolder import prepare_run_folder
+from mnacore.atomic import atomic_path, write_json
+from mnacore.errors import MnaError
+from mnacore.frame import Normalization
 
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint.pt"

@@ -16,8 +16,8 @@ import shutil
 from pathlib import Path
 from typing import Iterable
 
-from mna.atomic import clean_stale_temporaries
-from mna.errors import MnaError
+from mnacore.atomic import clean_stale_temporaries
+from mnacore.errors import MnaError
 
 #: files and folders of a run folder written by some mna command (see DESIGN's layout)
 RUN_FILES = (

@@ -30,16 +30,16 @@ from torch import nn
 from torch.utils.data import DataLoader
 
 from mna import datasets, train_config
-from mna.atomic import clean_stale_temporaries, write_json, write_text
 from mna.checkpoint import read_state, write_state
 from mna.conditional import CHECKPOINT_FORMAT, ConditionalAtlas, load_state
 from mna.config import save_yaml
 from mna.distributed import Distributed, ResumableSampler, rank_param_divergence, setup_distributed
-from mna.errors import MnaError
 from mna.interrupt import exit_code, graceful_stop
 from mna.model import flush_denormals
 from mna.objective import LossTerms, atlas_losses
 from mna.train_config import TrainConfig
+from mnacore.atomic import clean_stale_temporaries, write_json, write_text
+from mnacore.errors import MnaError
 
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint.pt"

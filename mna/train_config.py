@@ -14,7 +14,7 @@ from pathlib import Path
 
 from mna import config as fit_config_mod
 from mna.config import AblationConfig, FitConfig, LossConfig, ModelConfig
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 LAYOUTS = ("meshes", "shapenet", "cloth3d")
 INPUTS = ("points", "image")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import atomic_path
+from mnacore.atomic import atomic_path
 from render.images import read_image
 
 #: caption fields: (compare.json key, label, format)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import atomic_path
+from mnacore.atomic import atomic_path
 from render.meshes import UVMesh
 from render.textures import chart_colors, hue_palette
 

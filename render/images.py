@@ -1,7 +1,7 @@
 """Image I/O through OpenImageIO, sRGB encoding, and image-difference measures.
 
 Arrays are ``(H, W, C)`` float32, row 0 at the top. Radiance is linear; PNGs are
-8-bit sRGB. Every write is atomic (``mna.atomic.atomic_path``).
+8-bit sRGB. Every write is atomic (``mnacore.atomic.atomic_path``).
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mna.atomic import atomic_path
+from mnacore.atomic import atomic_path
 
 
 def _oiio():

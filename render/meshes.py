@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import atomic_path
+from mnacore.atomic import atomic_path
+from mnacore.triangles import face_normals
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ def load_uv_mesh(path: str | Path) -> UVMesh:
     """Load a triangle mesh with (optional) per-vertex UVs and its texture file, if named."""
     import trimesh
 
-    from mna.data import check_coordinates, check_file_format
+    from mnacore.frame import check_coordinates, check_file_format
 
     path = Path(path)
     if not path.is_file():
@@ -78,7 +79,7 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     v = np.asarray(vertices, np.float64)
     _, weld = np.unique(np.round(v, 9), axis=0, return_inverse=True)
     weld = weld.reshape(-1)
-    fn = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    fn = face_normals(v, faces, unit=False)
     acc = np.zeros((weld.max() + 1, 3))
     for k in range(3):
         np.add.at(acc, weld[faces[:, k]], fn)

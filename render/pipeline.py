@@ -26,16 +26,23 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import atomic_path, write_json
+from mnacore.atomic import atomic_path, write_json
 from render import heatmap as H
 from render.backend import VariantChoice, choose_variant, import_mitsuba
 from render.images import read_image, to_display, write_exr, write_png
 from render.meshes import UVMesh, load_uv_mesh, unshare, vertex_normals, write_ply
-from render.mitsuba_scene import (material_bitmap, material_plain, material_procedural_checker,
-                                  material_vertex_colors, render_dict, scene_dict, scene_xml)
-from texture.textures import checker_image, squares_per_uv_unit, uv_grid_image
+from render.mitsuba_scene import (
+    material_bitmap,
+    material_plain,
+    material_procedural_checker,
+    material_vertex_colors,
+    render_dict,
+    scene_dict,
+    scene_xml,
+)
 from scenes.cameras import BoundingSphere, Camera, bounding_sphere, camera_rig, world_frame
 from scenes.presets import Preset, load_preset, preset_to_dict
+from texture.textures import checker_image, squares_per_uv_unit, uv_grid_image
 
 TEXTURES = ("checker", "uvgrid", "bake", "procedural", "none")
 DEFAULT_VIEWS = ("front", "side", "top", "three_quarter")

@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from mna.atomic import write_text
+from mnacore.atomic import write_text
 
 #: fit metrics shown in the report (metrics.json keys), in order
 METRIC_KEYS = ("chamfer_pcl", "fscore_pcl", "chamfer_mesh", "fscore_mesh", "distortion_metric",

@@ -13,17 +13,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .charts import ChartGrids
-from mna.pointmetrics import POINTS, chamfer_fscore
+from mnacore.charts import ChartGrids
+from mnacore.frame import Normalization
+from mnacore.pointmetrics import POINTS, chamfer_fscore
+from mnacore.triangles import signed_areas
+from mnacore.uvmesh import UVMesh, make_uv_mesh
+
+from .clip import UV_COLUMNS, clip_mesh
 from .geometry import sample_surface
 from .islands import unique_rows, uv_islands
 from .orient import Reference, orient_pieces
-from .clip import UV_COLUMNS, clip_mesh
-from .relax import RelaxConfig, relax_meshes
 from .pack import PACK_CANDIDATES, PRUNE_MARGIN, Packing, estimate_layouts, pack_islands, plan_layouts
 from .parallel import default_workers
+from .relax import RelaxConfig, relax_meshes
 from .trim import Piece, TrimConfig, trim_charts
-from .uvmesh import Normalization, UVMesh, make_uv_mesh
 
 
 @dataclass
@@ -366,10 +369,7 @@ def _unmirrored(p: Piece) -> Piece:
     outside. Flattening and packing never reflect (SLIM is flip-free, the packer only
     rotates), so this holds in the packed atlas."""
     q, isl = _prepared(p)
-    t = q.uv[q.faces]
-    signed = 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
-                    - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
-    mirrored = np.bincount(isl, weights=signed) < 0
+    mirrored = np.bincount(isl, weights=signed_areas(q.uv, q.faces)) < 0
     if not mirrored.any():
         return p
     flip = np.zeros(len(q.uv), bool)

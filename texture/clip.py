@@ -28,6 +28,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mnacore.triangles import signed_areas
+
 #: field values with |f| below this fraction of max|f| are on the line (exactly 0).
 SNAP_REL = 1e-7
 #: a vertex within this fraction of an edge from the crossing on it moves onto the crossing.
@@ -45,11 +47,6 @@ class Clipped(NamedTuple):
     field: np.ndarray  # (V',) field value (0 on cut vertices)
     source_face: np.ndarray  # (F',) input face each output face came from
     source_vertex: np.ndarray  # (V',) input vertex each output vertex is (-1 for cut points)
-
-
-def _signed_areas(p: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    t = p[faces]
-    return (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
 
 
 def _snap(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane) -> tuple[np.ndarray, np.ndarray]:
@@ -72,12 +69,12 @@ def _snap(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane) -> tup
     near, frac, far = near[first], frac[first], far[first]
     target = (1 - frac)[:, None] * attrs[near] + frac[:, None] * attrs[far]
     cols = list(plane)
-    before = _signed_areas(attrs[:, cols], faces)
+    before = signed_areas(attrs[:, cols], faces)
     snapped = np.ones(len(near), bool)
     for _ in range(4):  # un-snap vertices whose faces would shrink too much or turn over
         moved = attrs.copy()
         moved[near[snapped]] = target[snapped]
-        after = _signed_areas(moved[:, cols], faces)
+        after = signed_areas(moved[:, cols], faces)
         bad = ~((after * np.sign(before) >= SNAP_MIN_AREA * np.abs(before)) | (before == 0))
         if not bad.any():
             break
@@ -161,16 +158,3 @@ def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane: tu
     order = np.argsort(src, kind="stable")
     source = np.concatenate([np.arange(V), np.full(len(cut_attrs), -1)])
     return Clipped(all_attrs[used], remap[new_faces][order], all_field[used], src[order], source[used])
-
-
-def grid_faces(resolution: int) -> np.ndarray:
-    """(2 (G-1)^2, 3) triangles of a G x G vertex grid (docs/run_folder.md triangulation).
-
-    Cell ``(i, j)`` gives ``(i,j) (i,j+1) (i+1,j+1)`` and ``(i,j) (i+1,j+1) (i+1,j)``,
-    counter-clockwise in UV (u = column, right; v = row, up); vertex ``(i, j)`` is ``i*G + j``.
-    """
-    G = int(resolution)
-    i, j = np.meshgrid(np.arange(G - 1), np.arange(G - 1), indexing="ij")
-    a = (i * G + j).ravel()
-    b, c, d = a + 1, a + G + 1, a + G
-    return np.stack([np.stack([a, b, c], 1), np.stack([a, c, d], 1)], 1).reshape(-1, 3)

@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import write_json, write_text
-from mna.errors import InputError
+from mnacore.atomic import write_json, write_text
+from mnacore.charts import load_charts
+from mnacore.errors import InputError
 
-from .charts import load_charts
 from .export import export_textured, read_back
 from .harness import measure
 from .pipeline import export_run, load_input, make_texture

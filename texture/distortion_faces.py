@@ -3,7 +3,7 @@
 A triangle with UV corners ``t0, t1, t2`` and positions ``p0, p1, p2`` is mapped by the
 affine map whose Jacobian ``J (3, 2)`` solves ``J [t1 - t0, t2 - t0] = [p1 - p0, p2 - p0]``,
 i.e. ``J = P D^-1`` with ``D = [t1 - t0, t2 - t0]`` (2x2) and ``P = [p1 - p0, p2 - p0]`` (3x2).
-The formulas themselves live in :mod:`mna.distortion` (shared with the fit loss).
+The formulas themselves live in :mod:`mnacore.distortion` (shared with the fit loss).
 
 Example: UVs ``(0,0), (1,0), (0,1)`` on positions ``(0,0,0), (2,0,0), (0,1,0)`` give
 ``J = [[2,0],[0,1],[0,0]]``, ``g = diag(4, 1)``: ``tr g = 5``, ``tr g^-1 = 1.25``, so
@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mna import distortion as D
+from mnacore import distortion as D
 
 #: faces whose |UV area| is below this fraction of the mean |UV area| have no Jacobian.
 DEGENERATE_UV_REL = 1e-10

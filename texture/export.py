@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import atomic_path
-from mna.errors import InputError
+from mnacore.atomic import atomic_path
+from mnacore.errors import InputError
+from mnacore.uvmesh import UVMesh, weld_ids
 
 from .normals import Shading, open_surface, shading_normals
-from .uvmesh import UVMesh, weld_ids
 
 MATERIAL = "material_0"
 #: a matte, plastic-like finish: the checker reads the same from every view.
@@ -134,7 +134,7 @@ def export_textured(folder: str | os.PathLike, mesh: UVMesh, image: np.ndarray, 
 
 def read_back(path: str | os.PathLike) -> UVMesh:
     """Load an exported OBJ/GLB with trimesh (no processing) as a :class:`UVMesh`."""
-    from .uvmesh import load_uv_mesh
+    from mnacore.uvmesh import load_uv_mesh
 
     mesh, _ = load_uv_mesh(path)
     return mesh

@@ -14,17 +14,9 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mnacore.triangles import triangle_areas
+
 from .islands import edge_keys, edge_use_counts, half_edges
-
-
-def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Per-face area (F,) of triangles ``points[faces]``; points (V, 2) or (V, 3)."""
-    p = np.asarray(points, np.float64)
-    a, b, c = p[faces[:, 0]], p[faces[:, 1]], p[faces[:, 2]]
-    if p.shape[1] == 2:
-        e1, e2 = b - a, c - a
-        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
@@ -235,7 +227,7 @@ def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int, seed: in
     """``count`` points uniform on the surface (area-weighted), seeded; returns (points, face)."""
     vertices = np.asarray(vertices, np.float64)
     tri = vertices[np.asarray(faces, np.int64)]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(vertices, np.asarray(faces, np.int64))
     rng = np.random.default_rng(seed)
     face = rng.choice(len(tri), size=count, p=area / area.sum())
     r1, r2 = rng.random(count), rng.random(count)
@@ -246,7 +238,7 @@ def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int, seed: in
 
 def boundary_segments(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(S, 2, 3) open-boundary edges (used by one face) of a mesh, after welding positions."""
-    from .uvmesh import weld_ids
+    from mnacore.uvmesh import weld_ids
 
     vertices = np.asarray(vertices, np.float64)
     ids = weld_ids(vertices)

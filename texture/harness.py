@@ -44,22 +44,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mna import distortion as D
+from mnacore import distortion as D
+
+#: default texel grid for overlap and utilisation.
+from mnacore.frame import Normalization, unit_ball_normalization
+from mnacore.tolerances import SURFACE_TOL
+from mnacore.triangles import face_normals
+from mnacore.uvmesh import UVMesh, make_uv_mesh, weld_ids
 
 from . import islands as _islands
 from .distortion_faces import FaceGeometry, equal_area_uv_scale, face_geometry, per_face_from_geometry
 from .geometry import MeshProjector, distance_to_segments
 from .raster import coverage_count
-from .uvmesh import Normalization, UVMesh, make_uv_mesh, unit_ball_normalization, weld_ids
 
-#: default texel grid for overlap and utilisation.
 RESOLUTION = 1024
 #: distance (unit-ball frame, 1 % of the diameter) within which an island border counts
 #: as lying on the reference surface's open boundary rather than being a seam.
-BOUNDARY_TOL = 0.02
+BOUNDARY_TOL = SURFACE_TOL
 #: the same 1 % of the diameter: a face whose normal opposes the reference is still not
 #: folded if a reference facet within this beyond the closest point faces its way.
-FOLD_TOL = 0.02
+FOLD_TOL = SURFACE_TOL
 
 
 def per_face_distortions(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> dict[str, np.ndarray]:
@@ -150,8 +154,7 @@ def _smoothed_normals(mesh: UVMesh, geom: FaceGeometry, island: np.ndarray, weld
 def facet_normals(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(F, 3) unit normals of the planes of ``faces``, each turned to the side of the mean
     of its vertex ``normals`` (the reference's own idea of outside, whatever its winding)."""
-    t = vertices[faces]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n = face_normals(vertices, faces, unit=False)
     n *= np.where((n * normals[faces].sum(1)).sum(1) < 0, -1.0, 1.0)[:, None]
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 

@@ -18,6 +18,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from mnacore.triangles import face_normals
+
 from .islands import half_edges
 
 #: edges whose faces meet at more than this angle stay sharp. A curved surface sampled with
@@ -37,9 +39,7 @@ class Shading(NamedTuple):
 def face_normals_angles(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """((F, 3) unit face normals (zero for degenerate faces), (F, 3) corner angles in radians)."""
     t = np.asarray(vertices, np.float64)[faces]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    n = face_normals(vertices, faces)
     e1 = np.roll(t, -1, axis=1) - t  # corner c -> c+1
     e2 = np.roll(t, 1, axis=1) - t  # corner c -> c-1
     cos = (e1 * e2).sum(-1) / np.maximum(np.linalg.norm(e1, axis=-1) * np.linalg.norm(e2, axis=-1), 1e-300)

@@ -37,11 +37,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mnacore.tolerances import SURFACE_TOL
+from mnacore.triangles import face_normals
+
+from . import parallel
 from .clip import UV_COLUMNS, clip_mesh
 from .geometry import MeshProjector
 from .harness import FOLD_TOL, facet_normals
 from .islands import uv_islands
-from . import parallel
 from .parallel import parallel_map
 from .trim import Piece
 
@@ -85,16 +88,10 @@ class Reference:
         return out
 
 
-def face_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F, 3) area-weighted (unnormalised, length = 2 * area) face normals."""
-    t = xyz[faces]
-    return np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-
-
 def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(V, 3) unit area-weighted vertex normals (zero for unused vertices)."""
     acc = np.zeros((len(xyz), 3))
-    fn = face_normals(xyz, faces)
+    fn = face_normals(xyz, faces, unit=False)
     for i in range(3):
         np.add.at(acc, faces[:, i], fn)
     return acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-300)
@@ -102,7 +99,7 @@ def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 #: farther than this from the reference (unit-ball frame, 1 % of the diameter: the F-score
 #: threshold) a chart is not on the surface and the reference says nothing about its orientation
-NEAR = 0.02
+NEAR = SURFACE_TOL
 #: a reference facet this much against the closest normal (cosine) makes the orientation undecided
 UNDECIDED_COS = 0.1
 
@@ -111,7 +108,7 @@ def folded_area(piece: Piece, reference: Reference) -> float:
     """3D area of the piece's faces whose normal disagrees with the reference (at the centroid)."""
     if len(piece.faces) == 0:
         return 0.0
-    fn = face_normals(piece.xyz, piece.faces)
+    fn = face_normals(piece.xyz, piece.faces, unit=False)
     centroid = piece.xyz[piece.faces].mean(1)
     bad = (fn * reference.normal_at(centroid)).sum(1) < 0
     return 0.5 * float(np.linalg.norm(fn[bad], axis=1).sum())
@@ -139,7 +136,7 @@ class _Part(NamedTuple):
         p = self.piece
         r = self.ref[p.faces].mean(1)
         decided = (r[:, 3] <= NEAR) & (r[:, 4] < 0.5)
-        return np.where(decided, np.sign((face_normals(p.xyz, p.faces) * r[:, :3]).sum(1)), 0.0)
+        return np.where(decided, np.sign((face_normals(p.xyz, p.faces, unit=False) * r[:, :3]).sum(1)), 0.0)
 
     def folded(self) -> float:
         """Area facing against the reference."""

@@ -34,7 +34,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .geometry import triangle_areas
+from mnacore.triangles import signed_areas, triangle_areas
+
 from .islands import edge_keys, edge_use_counts, half_edges
 from .parallel import parallel_map
 from .raster import iter_hits
@@ -629,14 +630,9 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
 
 def mirrored_islands(isl: _Islands, px: np.ndarray) -> list[int]:
     """Islands whose placement ``px`` (V, 2) reverses their UVs' orientation (a reflection)."""
-    before = np.bincount(isl.island, weights=_signed_areas(isl.uv, isl.faces), minlength=isl.n)
-    after = np.bincount(isl.island, weights=_signed_areas(px, isl.faces), minlength=isl.n)
+    before = np.bincount(isl.island, weights=signed_areas(isl.uv, isl.faces), minlength=isl.n)
+    after = np.bincount(isl.island, weights=signed_areas(px, isl.faces), minlength=isl.n)
     return np.flatnonzero(before * after < 0).tolist()
-
-
-def _signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    t = uv[faces]
-    return (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
 
 
 def _without_mirrors(isl: _Islands, resolution: int, padding: int, best: tuple, max_attempts: int) -> tuple | None:

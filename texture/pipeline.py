@@ -11,18 +11,28 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import write_json
-from mna.errors import InputError
+from mnacore.atomic import write_json
+from mnacore.charts import load_charts
+from mnacore.errors import InputError
+from mnacore.frame import Normalization, unit_ball_normalization
+from mnacore.uvmesh import UVMesh, load_uv_mesh
 
 from .atlas import AtlasConfig, build_atlas
-from .orient import Reference
-from .relax import RelaxConfig
-from .charts import load_charts
 from .export import export_textured
 from .harness import measure
-from .textures import (MIN_TEXELS_PER_SQUARE, SQUARE_SIZE, bake, check_size, checker_image, source_colors,
-                       squares_per_uv_unit, uv_grid_image, uv_length_scale)
-from .uvmesh import Normalization, UVMesh, load_uv_mesh, unit_ball_normalization
+from .orient import Reference
+from .relax import RelaxConfig
+from .textures import (
+    MIN_TEXELS_PER_SQUARE,
+    SQUARE_SIZE,
+    bake,
+    check_size,
+    checker_image,
+    source_colors,
+    squares_per_uv_unit,
+    uv_grid_image,
+    uv_length_scale,
+)
 from .xatlas_uv import XatlasOptions, check_mesh, unwrap
 
 TEXTURES = ("checker", "uvgrid", "bake")

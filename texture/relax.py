@@ -27,14 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from mna import distortion as D
+from mnacore import distortion as D
+from mnacore.triangles import triangle_areas
 
-from .distortion_faces import face_geometry
-from .geometry import triangle_areas
-from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 from . import parallel
+from .distortion_faces import face_geometry
+from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 from .parallel import parallel_map
-
 
 #: weight of the soft constraints that hold border vertices (libigl's default).
 PIN_WEIGHT = 1e5

@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from mna.atomic import atomic_path
-from mna.errors import InputError
+from mnacore.atomic import atomic_path
+from mnacore.errors import InputError
+from mnacore.triangles import triangle_areas
+from mnacore.uvmesh import UVMesh
 
-from .geometry import triangle_areas
 from .raster import face_id_image
-from .uvmesh import UVMesh
 
 #: default checker square: 0.1 of the unit ball (20 squares across the diameter).
 SQUARE_SIZE = 0.1

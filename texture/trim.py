@@ -29,9 +29,13 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .charts import ChartGrids
-from .clip import UV_COLUMNS, clip_mesh, grid_faces
-from .geometry import MeshProjector, sample_surface, triangle_areas
+from mnacore.charts import ChartGrids
+from mnacore.grid import grid_faces
+from mnacore.tolerances import SURFACE_TOL
+from mnacore.triangles import triangle_areas
+
+from .clip import UV_COLUMNS, clip_mesh
+from .geometry import MeshProjector, sample_surface
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 
 
@@ -39,7 +43,7 @@ from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 class TrimConfig:
     """Options of the overlap trimming (unit-ball frame)."""
 
-    cover_tol: float = 0.02
+    cover_tol: float = SURFACE_TOL
     """Another chart covers a point if its surface is within this distance (not beyond its border)."""
     min_island_fraction: float = 1e-3
     """Islands smaller than this fraction of the total area go to a covering chart."""

@@ -13,9 +13,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from mna.errors import InputError
-
-from .uvmesh import UVMesh, make_uv_mesh, unit_ball_normalization, weld_ids
+from mnacore.errors import InputError
+from mnacore.frame import unit_ball_normalization
+from mnacore.triangles import triangle_areas
+from mnacore.uvmesh import UVMesh, make_uv_mesh, weld_ids
 
 
 @dataclass
@@ -93,8 +94,7 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> N
     ids = weld_ids(vertices)
     f = ids[faces]
     repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(vertices, faces)
     diag = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
     degenerate = repeated | (area <= 1e-14 * diag * diag)
     if degenerate.any():

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 #: The demo's fit is budgeted in steps, not seconds, so it gives one result on any machine.
 #: It used to be 150 s of the fast preset: 1,050-1,350 steps on an idle 2-core machine
@@ -35,10 +35,10 @@ def register(subparsers) -> None:
 
 def run_demo(args: argparse.Namespace) -> int:
     from mna import shapes
-    from mna.atomic import atomic_path
     from mna.cli import main
     from mna.config import MAX_CHARTS, MAX_SEED, check_int
     from mna.runfolder import prepare_run_folder
+    from mnacore.atomic import atomic_path
 
     check_int(args.steps, "--steps", 1)
     check_int(args.charts, "--charts", 1, MAX_CHARTS)

@@ -5,7 +5,7 @@ import argparse
 import signal
 from pathlib import Path
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 def register(subparsers) -> None:

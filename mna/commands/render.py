@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 def _positive_int(name: str):

@@ -5,7 +5,7 @@ import argparse
 import math
 from pathlib import Path
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 def register(subparsers) -> None:
@@ -141,10 +141,11 @@ def run_uv_metrics(args: argparse.Namespace) -> int:
 
     import trimesh
 
-    from mna.atomic import strict_json, write_json
+    from mnacore.atomic import strict_json, write_json
+    from mnacore.frame import unit_ball_normalization
+    from mnacore.uvmesh import load_uv_mesh
     from texture.compare import harness_context, run_folder_of
     from texture.harness import measure
-    from texture.uvmesh import load_uv_mesh, unit_ball_normalization
 
     mesh, _ = load_uv_mesh(args.mesh)
     run = run_folder_of(args.mesh)

@@ -5,7 +5,7 @@ import os
 
 import pytest
 
-from mna.atomic import atomic_path, write_json, write_text
+from mnacore.atomic import atomic_path, write_json, write_text
 
 
 def test_failed_write_leaves_previous_file_and_no_temporary(tmp_path):

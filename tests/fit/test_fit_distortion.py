@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from mna import distortion as D
+from mnacore import distortion as D
 
 
 def _jac(a: float, b: float, shear: float = 0.0, n: int = 7, lib=np):

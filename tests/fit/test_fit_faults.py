@@ -209,9 +209,8 @@ def test_tiny_and_huge_meshes_fit(tmp_path, scale):
 
 
 def test_unit_ball_is_overflow_safe_and_relative():
-    from mna.data import Normalization, unit_ball
-    from mna.errors import InputError
-    from texture.uvmesh import unit_ball_normalization
+    from mnacore.errors import InputError
+    from mnacore.frame import Normalization, unit_ball, unit_ball_normalization
 
     pts = np.array([[0.0, 0, 0], [2, 0, 0], [0, 1, 0]])
     for s in (1e-300, 1e-30, 1.0, 1e200, 1e300):
@@ -292,7 +291,7 @@ def test_uv_nan_coordinates(capsys, tmp_path):
 
 
 def test_uv_metrics_into_a_folder_names_the_folder(capsys, tmp_path):
-    from mna.atomic import TEMP_MARK
+    from mnacore.atomic import TEMP_MARK
 
     mesh = shapes.sphere(subdivisions=1)
     src = tmp_path / "m.obj"
@@ -364,7 +363,7 @@ def test_sigterm_saves_a_checkpoint_and_exits_143(torus_file, tmp_path):
 
 
 def test_stale_temporaries_are_cleaned_on_the_next_start(run_copy, torus_file):
-    from mna.atomic import atomic_path
+    from mnacore.atomic import atomic_path
 
     old = time.time() - 60
     stale = [run_copy / ".checkpoint.pt.mna-tmp.ab12cd_9.pt",  # this version's name

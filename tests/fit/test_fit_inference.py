@@ -6,8 +6,9 @@ import pytest
 import torch
 import trimesh
 
-from mna.inference import extract_grid, grid_triangles, grid_uv, rejection_sample
+from mna.inference import extract_grid, rejection_sample
 from mna.metrics import atlas_distortion
+from mnacore.grid import grid_faces, grid_uv
 
 
 @pytest.mark.parametrize("count", [1000, 5000, 20000])
@@ -39,7 +40,7 @@ def test_extracted_mesh_recovers_the_cap_area(analytic_atlas):
 def test_grid_layout_and_orientation():
     uv = grid_uv(3)
     assert uv[0, 0].tolist() == [-1, -1] and uv[0, 2].tolist() == [1, -1] and uv[2, 0].tolist() == [-1, 1]
-    tri = grid_triangles(3)
+    tri = grid_faces(3)
     assert len(tri) == 2 * 2 * 2
     flat = uv.reshape(-1, 2)
     a, b, c = flat[tri[:, 0]], flat[tri[:, 1]], flat[tri[:, 2]]

@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from scenes.cameras import (BoundingSphere, bounding_sphere, camera_rig, direction, frame_camera, project,
-                            view_specs)
+from scenes.cameras import BoundingSphere, bounding_sphere, camera_rig, direction, frame_camera, project, view_specs
 from scenes.presets import BUILTIN_PRESETS, ViewSpec, load_preset, preset_from_dict
 
 

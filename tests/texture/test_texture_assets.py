@@ -8,15 +8,16 @@ import numpy as np
 import pytest
 import trimesh
 
+from mnacore.grid import grid_faces
+from mnacore.uvmesh import make_uv_mesh, weld_ids
 from texture import gltf_validator
 from texture.atlas import _unmirrored
-from texture.clip import SNAP_FRACTION, clip_mesh, grid_faces
+from texture.clip import SNAP_FRACTION, clip_mesh
 from texture.export import ROUGHNESS, export_textured, read_back
 from texture.harness import measure
 from texture.normals import shading_normals
 from texture.textures import checker_image
 from texture.trim import Piece
-from texture.uvmesh import make_uv_mesh, weld_ids
 from texture.xatlas_uv import XatlasOptions, unwrap
 
 

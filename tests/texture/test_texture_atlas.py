@@ -5,17 +5,18 @@ import numpy as np
 import pytest
 from texture_helpers import cap_chart, sphere_charts
 
+from mnacore.charts import ChartGrids, load_charts
+from mnacore.frame import Normalization
+from mnacore.grid import grid_faces
+from mnacore.triangles import triangle_areas
 from texture.atlas import AtlasConfig, _merge, build_atlas
-from texture.geometry import triangle_areas
+from texture.clip import clip_mesh
 from texture.harness import measure
-from texture.relax import RelaxConfig
-from texture.charts import ChartGrids, load_charts
-from texture.clip import clip_mesh, grid_faces
 from texture.islands import uv_islands
 from texture.pack import pack_islands, verify_packing
 from texture.raster import coverage_count
+from texture.relax import RelaxConfig
 from texture.trim import border_points, domain_pieces, trim_charts
-from texture.uvmesh import Normalization
 
 
 def _uv_area(uv, faces):
@@ -51,7 +52,7 @@ def test_domain_cut_follows_iso_line_not_staircase():
     polar = np.arccos(np.clip(b[:, 2], -1, 1))
     np.testing.assert_allclose(polar, theta_max, atol=2e-3)  # border vertices on the rim
     # border length: iso-line ~ the rim; whole grid cells (the run's kept mesh) are a staircase
-    from texture.uvmesh import make_uv_mesh
+    from mnacore.uvmesh import make_uv_mesh
 
     ours = measure(make_uv_mesh(piece.xyz, piece.faces, piece.uv), reference_is_closed=True, resolution=64)
     tri = grid_faces(G)

@@ -77,8 +77,9 @@ def test_uv_and_uv_metrics(tmp_path, capsys):
 
 
 def test_compare_tabulates_every_method(tmp_path, monkeypatch):
-    import texture.compare as C
     from texture_helpers import write_sphere_run
+
+    import texture.compare as C
 
     monkeypatch.setattr(C, "SWEEP_MAX_COST", (1.0, 8.0))
     monkeypatch.setattr(C, "SWEEP_MAX_ITERATIONS", (1,))
@@ -111,9 +112,9 @@ def test_uv_metrics_writes_strict_json(tmp_path, capsys):
     F = np.array([[0, 1, 2], [1, 3, 2]])
     uv = np.array([[0, 0], [1, 0], [0, 1], [2, 2.0]])
     path = tmp_path / "m.obj"
+    from mnacore.uvmesh import make_uv_mesh
     from texture.export import export_textured
     from texture.textures import checker_image
-    from texture.uvmesh import make_uv_mesh
 
     export_textured(tmp_path, make_uv_mesh(V, F, uv), checker_image(4.0, 64), stem="m")
     assert main(["uv-metrics", str(path), "-o", str(tmp_path / "out.json")]) == 0

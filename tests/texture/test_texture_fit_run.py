@@ -9,8 +9,9 @@ import pytest
 
 from mna import shapes
 from mna.cli import main
+from mnacore.frame import Normalization
+from mnacore.uvmesh import make_uv_mesh
 from texture.harness import measure
-from texture.uvmesh import Normalization, make_uv_mesh
 
 pytestmark = pytest.mark.slow
 
@@ -51,9 +52,9 @@ def test_export_on_fit_run(tiny_run):
 def test_export_on_folded_single_chart_torus_fit(tmp_path):
     # one chart cannot cover a torus: a short fit folds and its one island fills the whole
     # atlas; export used to fail with "packed island 0 is not a rigid copy of its input"
-    from texture.pack import verify_packing
     from texture.export import read_back
     from texture.islands import uv_islands
+    from texture.pack import verify_packing
 
     src = tmp_path / "torus.ply"
     shapes.torus().export(src)

@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 from texture_helpers import cap_chart
 
-from mna import distortion as D
-from texture.clip import clip_mesh, grid_faces
+from mnacore import distortion as D
+from mnacore.grid import grid_faces
+from mnacore.uvmesh import from_corners, make_uv_mesh
+from texture.clip import clip_mesh
 from texture.harness import measure, per_face_distortions, uv_islands
-from texture.uvmesh import from_corners, make_uv_mesh
 
 SQUARE_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]])
 SQUARE_F = np.array([[0, 1, 2], [0, 2, 3]])

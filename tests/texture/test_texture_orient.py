@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from texture.clip import grid_faces
+from mnacore.grid import grid_faces
 from texture.islands import uv_islands
 from texture.orient import Reference, face_normals, folded_area, orient_pieces, split_orientation
 from texture.trim import Piece

@@ -11,9 +11,9 @@ from texture_helpers import CENTER, SCALE
 
 import texture.pack as pack
 from mna.cli import main
+from mnacore.charts import load_charts, save_charts
+from mnacore.grid import grid_faces
 from texture.atlas import AtlasConfig, _merge, build_atlas
-from texture.charts import load_charts, save_charts
-from texture.clip import grid_faces
 from texture.export import read_back
 from texture.islands import uv_islands
 from texture.pack import pack_islands, similarity_fit, verify_packing

@@ -4,10 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from texture.clip import grid_faces
+from mnacore.grid import grid_faces
 from texture.raster import coverage_count
-from texture.relax import (RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island,
-                           relax_islands)
+from texture.relax import RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island, relax_islands
 
 
 def _signed_areas(uv, faces):

@@ -6,11 +6,22 @@ import pytest
 import trimesh
 from texture_helpers import color_function
 
-from mna.errors import InputError
+from mnacore.errors import InputError
+from mnacore.uvmesh import make_uv_mesh
 from texture.export import export_textured, read_back
-from texture.textures import (bake, check_size, checker_image, dilate, read_image, sample_bilinear,
-                              squares_per_uv_unit, texel_centers, uv_grid_image, uv_length_scale, write_image)
-from texture.uvmesh import make_uv_mesh
+from texture.textures import (
+    bake,
+    check_size,
+    checker_image,
+    dilate,
+    read_image,
+    sample_bilinear,
+    squares_per_uv_unit,
+    texel_centers,
+    uv_grid_image,
+    uv_length_scale,
+    write_image,
+)
 from texture.xatlas_uv import XatlasOptions, unwrap
 
 

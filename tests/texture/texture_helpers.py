@@ -17,7 +17,7 @@ import pytest
 import trimesh
 
 from mna import shapes
-from texture.charts import save_charts
+from mnacore.charts import save_charts
 
 CENTER = np.array([0.5, -1.0, 2.0])
 SCALE = 2.0

@@ -6,7 +6,7 @@ import yaml
 
 from mna import train_config
 from mna.cli import main
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 def test_paper_preset_matches_the_paper():

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-
 from train_helpers import N_POINTS, SYNSET, tiny_config, write_meshes_layout
+
 from mna import datasets
 from mna.cli import main
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 def _unit_ball(points: np.ndarray) -> tuple[np.ndarray, float]:

@@ -8,8 +8,8 @@ import torch
 from mna import train_config
 from mna.conditional import ConditionalAtlas, bake
 from mna.encoders import PointNet, ResNet18
-from mna.errors import MnaError
 from mna.inference import uniform_uv
+from mnacore.errors import MnaError
 
 
 def test_pointnet_shape_and_permutation_invariance():

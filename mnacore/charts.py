@@ -12,9 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.errors import InputError
-
-from .uvmesh import Normalization
+from .errors import InputError
+from .frame import Normalization
 
 REQUIRED = ("uv", "xyz", "occ", "tau", "center", "scale")
 
@@ -91,9 +90,8 @@ def save_charts(path: str | os.PathLike, uv: np.ndarray, xyz: np.ndarray, occ: n
 
     Used for synthetic charts in tests and demos; the fit stage writes its own.
     """
-    from mna.atomic import atomic_path
-
-    from .clip import grid_faces
+    from .atomic import atomic_path
+    from .grid import grid_faces
 
     K, G = uv.shape[:2]
     tri = grid_faces(G)

@@ -19,22 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.data import Normalization  # noqa: F401  (re-exported: one unit-ball frame for every stage)
-from mna.data import check_coordinates, check_file_format
-from mna.errors import InputError
+from .errors import InputError
+from .frame import Normalization, check_coordinates, check_file_format
 
 #: relative tolerance (of the bounding-box diagonal) below which two positions are one point.
 WELD_TOL = 1e-9
-
-
-def unit_ball_normalization(points: np.ndarray) -> Normalization:
-    """Centre = bounding-box centre, scale = max distance to it (so the max radius is 1).
-
-    Example: the points ``(0,0,0)`` and ``(2,0,0)`` give ``center = (1,0,0)``, ``scale = 1``.
-    One implementation with the fit stage (:meth:`mna.data.Normalization.fit`): overflow-safe,
-    and a shape is degenerate relative to its own coordinates, not in absolute units.
-    """
-    return Normalization.fit(points, "mesh")
 
 
 @dataclass(frozen=True)

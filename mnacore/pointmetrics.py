@@ -12,8 +12,10 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from .tolerances import SURFACE_TOL
+
 #: F-score threshold: 1 % of the unit ball's diameter.
-FSCORE_THRESHOLD = 0.02
+FSCORE_THRESHOLD = SURFACE_TOL
 #: points per side for Chamfer / F-score.
 POINTS = 25000
 

@@ -1,0 +1,11 @@
+"""Tolerances shared by every stage, each defined once, in the unit-ball frame (DESIGN).
+
+The unit ball has diameter 2, so ``SURFACE_TOL = 0.02`` is 1 % of the shape's diameter:
+the F-score threshold of the paper and of DESIGN, and the distance within which two
+surfaces (a chart and the input, two charts, an island border and the input's boundary)
+count as the same surface.
+"""
+from __future__ import annotations
+
+#: 1 % of the unit ball's diameter: "on the surface" (F-score threshold, covering, boundary)
+SURFACE_TOL = 0.02

@@ -1,0 +1,41 @@
+"""Per-triangle geometry: areas, signed UV areas, unit normals. One formula each, vectorised.
+
+Shapes: ``points (V, 2)`` or ``(V, 3)``, ``faces (F, 3)`` int; results per face ``(F,)`` or
+``(F, 3)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Per-face area (F,) of triangles ``points[faces]``; points (V, 2) or (V, 3).
+
+    Example: the unit right triangle ``(0,0) (1,0) (0,1)`` has area 0.5.
+    """
+    p = np.asarray(points, np.float64)
+    a, b, c = p[faces[:, 0]], p[faces[:, 1]], p[faces[:, 2]]
+    if p.shape[1] == 2:
+        return np.abs(signed_areas(p, faces))
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+def signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) signed area of 2D triangles: positive when counter-clockwise (u right, v up).
+
+    Example: ``(0,0) (1,0) (0,1)`` gives +0.5, ``(0,0) (0,1) (1,0)`` gives -0.5.
+    """
+    t = np.asarray(uv, np.float64)[faces]
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def face_normals(points: np.ndarray, faces: np.ndarray, unit: bool = True) -> np.ndarray:
+    """(F, 3) normals of 3D triangles by the right-hand rule: unit (zero for degenerate faces),
+    or with ``unit=False`` of length twice the area (for area-weighted vertex normals)."""
+    t = np.asarray(points, np.float64)[faces]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    if not unit:
+        return n
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
