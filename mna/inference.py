@@ -12,7 +12,8 @@ import numpy as np
 import torch
 
 from mna.model import NeuralAtlas, flush_denormals
-from mnacore.grid import grid_faces, grid_uv
+from mnacore.charts import kept_mesh
+from mnacore.grid import grid_uv
 
 #: samples per chart per forward chunk at inference.
 CHUNK = 16384
@@ -138,19 +139,11 @@ def extract_grid(model: NeuralAtlas, resolution: int, tau: float = 0.5, z: torch
     ev = evaluate(model, uv, z)
     xyz = ev.x[:, 0].cpu().double().numpy().reshape(K, G, G, 3)
     occ = ev.occ[:, 0].cpu().double().numpy().reshape(K, G, G)
-    tri = grid_faces(G)
-    inside = occ.reshape(K, -1) > tau
-    all_faces = (tri[None] + (np.arange(K) * G * G)[:, None, None]).reshape(-1, 3)
-    face_chart = np.repeat(np.arange(K), len(tri))
-    keep = inside.reshape(-1)[all_faces].all(1)
-    faces, face_chart = all_faces[keep], face_chart[keep]
-    used = np.unique(faces)
-    remap = np.full(K * G * G, -1, dtype=np.int64)
-    remap[used] = np.arange(len(used))
+    kept = kept_mesh(occ, tau)
     return ChartGrid(
         uv=np.broadcast_to(uv_np, (K, G, G, 2)).astype(np.float32),
         xyz=xyz, occ=occ,
-        vertices=xyz.reshape(-1, 3)[used], faces=remap[faces],
-        vertex_uv=np.broadcast_to(uv_np.reshape(-1, 2), (K, G * G, 2)).reshape(-1, 2)[used],
-        vertex_chart=used // (G * G), face_chart=face_chart, grid_index=used,
+        vertices=xyz.reshape(-1, 3)[kept.grid_index], faces=kept.faces,
+        vertex_uv=np.broadcast_to(uv_np.reshape(-1, 2), (K, G * G, 2)).reshape(-1, 2)[kept.grid_index],
+        vertex_chart=kept.grid_index // (G * G), face_chart=kept.face_chart, grid_index=kept.grid_index,
     )

@@ -28,6 +28,7 @@ from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas, flush_denormals
 from mna.runfolder import prepare_run_folder
 from mnacore.atomic import atomic_path, write_json
+from mnacore.charts import save_charts
 from mnacore.errors import MnaError
 from mnacore.frame import Normalization
 
@@ -260,17 +261,10 @@ def _coordinate_dtype(norm: Normalization) -> type:
 
 
 def _write_charts(run: Path, g, norm: Normalization, tau: float) -> None:
+    """``charts.npz`` (the one writer, :func:`mnacore.charts.save_charts`) and ``charts.ply``."""
     K, G = g.xyz.shape[:2]
     xyz_in = norm.invert(g.xyz.reshape(-1, 3)).reshape(K, G, G, 3)
-    verts_in = norm.invert(g.vertices)
     dt = _coordinate_dtype(norm)
-    with atomic_path(run / CHARTS) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(
-                fh, uv=g.uv.astype(np.float32), xyz=xyz_in.astype(dt), occ=g.occ.astype(np.float32),
-                tau=np.float64(tau), center=norm.center.astype(np.float64), scale=np.float64(norm.scale),
-                vertices=verts_in.astype(dt), faces=g.faces.astype(np.int64),
-                vertex_uv=g.vertex_uv.astype(np.float32), vertex_chart=g.vertex_chart.astype(np.int64),
-                face_chart=g.face_chart.astype(np.int64), grid_index=g.grid_index.astype(np.int64),
-            )
+    save_charts(run / CHARTS, g.uv, xyz_in, g.occ, tau, norm, dt)
+    verts_in = xyz_in.reshape(-1, 3)[g.grid_index]
     _write_ply(run / CHARTS_PLY, verts_in, g.faces, dt)

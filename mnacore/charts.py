@@ -9,6 +9,7 @@ import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -84,38 +85,55 @@ def load_charts(path: str | os.PathLike) -> ChartGrids:
                       None if kf is None else np.asarray(kf, np.int64))
 
 
-def save_charts(path: str | os.PathLike, uv: np.ndarray, xyz: np.ndarray, occ: np.ndarray, tau: float,
-                center: np.ndarray, scale: float) -> None:
-    """Write a ``charts.npz`` in the documented format (kept mesh derived from ``occ > tau``).
+class KeptMesh(NamedTuple):
+    """The run's kept mesh: whole grid cells whose three vertices are all in-domain."""
 
-    Used for synthetic charts in tests and demos; the fit stage writes its own.
+    grid_index: np.ndarray  # (V,) flat index ``k * G * G + i * G + j`` of each kept vertex, ascending
+    faces: np.ndarray  # (F, 3) into the kept vertices; chart by chart, grid_faces order within a chart
+    face_chart: np.ndarray  # (F,) chart of each face
+
+
+def kept_mesh(occ: np.ndarray, tau: float) -> KeptMesh:
+    """The kept mesh of occupancy grids ``occ (K, G, G)``: triangles of :func:`grid_faces` whose
+    three vertices have ``occ > tau`` (the paper's mesh extraction), vertices renumbered.
+
+    Example: one chart on a 3 x 3 grid, all inside: 9 vertices, 8 faces.
     """
-    from .atomic import atomic_path
     from .grid import grid_faces
 
-    K, G = uv.shape[:2]
+    K, G = occ.shape[:2]
     tri = grid_faces(G)
-    inside = occ.reshape(K, -1) > tau
-    verts, faces, vuv, vchart, fchart, gidx = [], [], [], [], [], []
-    offset = 0
-    for k in range(K):
-        keep = inside[k][tri].all(1)
-        used = np.unique(tri[keep])
-        remap = np.full(G * G, -1)
-        remap[used] = np.arange(len(used)) + offset
-        verts.append(xyz[k].reshape(-1, 3)[used])
-        vuv.append(uv[k].reshape(-1, 2)[used])
-        faces.append(remap[tri[keep]])
-        vchart.append(np.full(len(used), k))
-        fchart.append(np.full(int(keep.sum()), k))
-        gidx.append(k * G * G + used)
-        offset += len(used)
+    inside = (np.asarray(occ).reshape(K, -1) > tau).reshape(-1)
+    all_faces = (tri[None] + (np.arange(K) * G * G)[:, None, None]).reshape(-1, 3)
+    keep = inside[all_faces].all(1)
+    faces = all_faces[keep]
+    used = np.unique(faces)
+    remap = np.full(K * G * G, -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return KeptMesh(used, remap[faces], np.repeat(np.arange(K), len(tri))[keep])
+
+
+def save_charts(path: str | os.PathLike, uv: np.ndarray, xyz: np.ndarray, occ: np.ndarray, tau: float,
+                normalization: Normalization, dtype=np.float32) -> None:
+    """Write ``charts.npz`` in the documented format (docs/run_folder.md), atomically.
+
+    ``xyz (K, G, G, 3)`` in the input frame; the kept mesh is derived by :func:`kept_mesh`.
+    Positions are stored as ``dtype`` (float64 where float32 cannot hold the input's scale).
+    The one writer: the fit stage and synthetic charts in tests both use it.
+    """
+    from .atomic import atomic_path
+
+    K, G = uv.shape[:2]
+    kept = kept_mesh(occ, tau)
+    flat_uv, flat_xyz = uv.reshape(-1, 2), xyz.reshape(-1, 3)
     arrays = dict(
-        uv=uv.astype(np.float32), xyz=xyz.astype(np.float32), occ=occ.astype(np.float32),
-        tau=np.float64(tau), center=np.asarray(center, np.float64), scale=np.float64(scale),
-        vertices=np.concatenate(verts).astype(np.float32), faces=np.concatenate(faces).astype(np.int64),
-        vertex_uv=np.concatenate(vuv).astype(np.float32), vertex_chart=np.concatenate(vchart).astype(np.int64),
-        face_chart=np.concatenate(fchart).astype(np.int64), grid_index=np.concatenate(gidx).astype(np.int64),
+        uv=uv.astype(np.float32), xyz=xyz.astype(dtype), occ=occ.astype(np.float32),
+        tau=np.float64(tau), center=np.asarray(normalization.center, np.float64),
+        scale=np.float64(normalization.scale),
+        vertices=flat_xyz[kept.grid_index].astype(dtype), faces=kept.faces.astype(np.int64),
+        vertex_uv=flat_uv[kept.grid_index].astype(np.float32),
+        vertex_chart=(kept.grid_index // (G * G)).astype(np.int64),
+        face_chart=kept.face_chart.astype(np.int64), grid_index=kept.grid_index.astype(np.int64),
     )
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:

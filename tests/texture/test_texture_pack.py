@@ -12,6 +12,7 @@ from texture_helpers import CENTER, SCALE
 import texture.pack as pack
 from mna.cli import main
 from mnacore.charts import load_charts, save_charts
+from mnacore.frame import Normalization
 from mnacore.grid import grid_faces
 from texture.atlas import AtlasConfig, _merge, build_atlas
 from texture.export import read_back
@@ -130,7 +131,7 @@ def _write_folded_run(run):
     z = 0.05 * np.clip(u + 0.3, 0, 0.6) + 0.05 * np.clip(u - 0.3, 0, None)
     xyz = np.stack([x, v, z], -1)[None] * 0.5 * SCALE + CENTER
     occ = (1.49 - 0.4 * np.maximum(np.abs(u), np.abs(v)) ** 8)[None]  # in domain everywhere
-    save_charts(run / "charts.npz", np.stack([u, v], -1)[None], xyz, occ, 0.5, CENTER, SCALE)
+    save_charts(run / "charts.npz", np.stack([u, v], -1)[None], xyz, occ, 0.5, Normalization(CENTER, SCALE))
     return run
 
 

@@ -18,6 +18,7 @@ import trimesh
 
 from mna import shapes
 from mnacore.charts import save_charts
+from mnacore.frame import Normalization
 
 CENTER = np.array([0.5, -1.0, 2.0])
 SCALE = 2.0
@@ -57,7 +58,7 @@ def write_sphere_run(run: Path, G: int = 96, colored_input: bool = True, **kw) -
     """A run folder with charts.npz of ``sphere_charts`` and config.yaml naming an input mesh."""
     run.mkdir(parents=True, exist_ok=True)
     uv, xyz, occ = sphere_charts(G, **kw)
-    save_charts(run / "charts.npz", uv, xyz, occ, 0.5, CENTER, SCALE)
+    save_charts(run / "charts.npz", uv, xyz, occ, 0.5, Normalization(CENTER, SCALE))
     mesh = shapes.sphere(radius=1.0, subdivisions=4)
     if colored_input:
         mesh.visual.vertex_colors = color_function(mesh.vertices)
