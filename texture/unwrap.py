@@ -1,0 +1,278 @@
+"""Neural-chart UVs on the user's own mesh: ``unwrap_mesh(vertices, faces, charts)``.
+
+The fitted charts supply the *segmentation*; classical geometry processing supplies the
+flattening (the charts' own UVs are not a usable start: input vertices off a chart's
+domain project onto its border and fold). Stages (timed in ``stats["timings"]``):
+
+1. ``prepare``: weld, cut non-manifold edges, split non-manifold vertices, set degenerate
+   faces aside (:mod:`texture.meshprep`); the input's faces and their order are kept.
+2. ``assign``: chart per face by depth-preferring nearest-chart votes (:mod:`texture.assign`).
+   A connected component none of whose faces comes within ``FAR_TOL`` of a chart is a
+   *fallback* component: it becomes its own region, flattened the same classical way
+   (cut to a disk, Tutte, SLIM), and ``fallback_area_fraction`` reports its share.
+3. ``clean``: small regions merged into their longest-border neighbour (:mod:`texture.regions`).
+4. ``flatten``: each region split at pinches and cut to a disk, embedded by Tutte
+   (:mod:`texture.flatten`), scaled so its UV area equals its 3D area (unit-ball frame).
+   A region that cannot be cut to a disk is split in two across its longest axis.
+5. ``relax``: SLIM toward an isometry (:func:`texture.relax.relax_meshes`), all islands
+   at the one scale above (so one texel density), border crossings prevented; each
+   island's flips and boundary crossings are counted afterwards.
+6. ``pack``: :func:`texture.pack.pack_islands` at ``resolution`` and ``padding``.
+
+Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
+the same corner order, in the input frame; output vertex = one per distinct (input
+vertex, island vertex) pair, so input vertices are duplicated only along seams (and where
+the input was non-manifold, or a face repeats a vertex index). A degenerate face takes
+its corners' UVs in one neighbouring island (a zero-area UV triangle inside it).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
+from .charts import ChartGrids
+from .flatten import cut_to_disk, signed_uv_areas, split_pinched, tutte
+from .geometry import triangle_areas
+from .meshprep import prepare_mesh
+from .pack import pack_islands
+from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions
+from .relax import RelaxConfig, crossing_edges, relax_meshes
+from .uvmesh import UVMesh
+
+
+@dataclass
+class UnwrapConfig:
+    """Options of :func:`unwrap_mesh` (``mna unwrap``)."""
+
+    min_fraction: float = MIN_FRACTION
+    """Regions below this fraction of their component's area merge into a neighbour."""
+    near_tol: float = NEAR_TOL
+    """Charts within this of the nearest (unit-ball frame) compete on domain depth."""
+    far_tol: float = FAR_TOL
+    """Samples farther than this from every chart are not reached by the fit."""
+    slim_iterations: int = 40
+    """Most SLIM iterations per island."""
+    slim_min_gain: float = 1e-3
+    """Stop an island's SLIM once an iteration gains less than this in mean energy excess."""
+    resolution: int = 2048
+    """Texture size the islands are packed for (texels)."""
+    padding: int = 8
+    """Gutter around each island (texels)."""
+    max_split_depth: int = 6
+    """A region that cannot be cut to a disk is halved at most this many times."""
+
+
+@dataclass
+class Island:
+    """One flattened island: ``faces (Fi, 3)`` into ``uv (Vi, 2)``; ``work_faces (Fi,)``
+    working face of each face; ``work_vertex (Vi,)`` working vertex of each vertex."""
+
+    faces: np.ndarray
+    uv: np.ndarray
+    xyz: np.ndarray
+    work_faces: np.ndarray
+    work_vertex: np.ndarray
+    label: int
+
+
+@dataclass
+class Unwrap:
+    """Result of :func:`unwrap_mesh`: the UV mesh (input frame), island per face, stats."""
+
+    mesh: UVMesh
+    island: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+
+def _split_halves(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
+    """Face index sets of the two halves of a region across its longest bounding-box axis."""
+    c = vertices[faces].mean(1)
+    axis = int(np.argmax(np.ptp(c, 0)))
+    med = np.median(c[:, axis])
+    lo = c[:, axis] <= med
+    if lo.all() or not lo.any():
+        lo = np.arange(len(faces)) < len(faces) // 2
+    return [np.flatnonzero(lo), np.flatnonzero(~lo)]
+
+
+def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,
+                    depth: int, stats: dict) -> list[Island]:
+    """Disk-cut and Tutte-embed one connected region (``faces`` index ``xyz``); see module docstring."""
+    from .meshprep import face_components
+
+    vid, inv = np.unique(faces, return_inverse=True)
+    local = inv.reshape(-1, 3)
+    split, src = split_pinched(local)
+    out = []
+    for comp in np.unique(face_components(split)):  # a pinch split can separate pieces
+        sel = np.flatnonzero(face_components(split) == comp)
+        cv, ci = np.unique(split[sel], return_inverse=True)
+        f = ci.reshape(-1, 3)
+        p = xyz[vid[src[cv]]]
+        try:
+            disk = cut_to_disk(p, f)
+            uv = tutte(p[disk.source], disk.faces)
+            if not np.isfinite(uv).all() or (signed_uv_areas(uv, disk.faces) <= 0).any():
+                raise RuntimeError("Tutte embedding folded (numerically)")
+        except (RuntimeError, ValueError, KeyError, IndexError):
+            if depth <= 0:
+                raise
+            stats["region_splits"] += 1
+            for half in _split_halves(p, f):
+                from .regions import FaceAdjacency  # noqa: F401  (halves may be disconnected)
+                hv = face_components(f[half])
+                for h in np.unique(hv):
+                    part = half[hv == h]
+                    out += _flatten_region(p, f[part], work_faces[sel][part], label, depth - 1, stats)
+            continue
+        stats["cut_edges"] += disk.cut_edges
+        xyz_d = p[disk.source]
+        area3, area_uv = triangle_areas(xyz_d, disk.faces).sum(), signed_uv_areas(uv, disk.faces).sum()
+        uv *= np.sqrt(area3 / area_uv)
+        out.append(Island(disk.faces, uv, xyz_d, work_faces[sel], vid[src[cv]][disk.source], label))
+    return out
+
+
+def _relax(islands: list[Island], cfg: UnwrapConfig) -> dict:
+    rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
+    done = relax_meshes([(isl.xyz, isl.uv, isl.faces, np.zeros(len(isl.faces), np.int64)) for isl in islands],
+                        rcfg, scale=1.0)
+    st = {"slim_iterations_max": 0, "slim_stopped_by_crossing": 0, "flipped_islands": 0, "crossing_islands": 0,
+          "energy_before": 0.0, "energy_after": 0.0}
+    area = 0.0
+    for isl, (uv, s) in zip(islands, done):
+        signed = signed_uv_areas(uv, isl.faces)
+        if (signed <= 0).any() or len(crossing_edges(isl.faces, uv)):
+            # SLIM's result must be injective; keep the (flip-free, convex) Tutte start otherwise
+            st["flipped_islands"] += int((signed <= 0).any())
+            st["crossing_islands"] += int(len(crossing_edges(isl.faces, uv)) > 0)
+        else:
+            isl.uv = uv
+        st["slim_iterations_max"] = max(st["slim_iterations_max"], *s["iterations"]) if s["iterations"] else 0
+        st["slim_stopped_by_crossing"] += s["stopped_by_crossing"]
+        st["energy_before"] += s["energy_before"] * s["area"]
+        st["energy_after"] += s["energy_after"] * s["area"]
+        area += s["area"]
+    if area > 0:
+        st["energy_before"] /= area
+        st["energy_after"] /= area
+    return st
+
+
+def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np.ndarray) -> tuple[UVMesh, np.ndarray, dict]:
+    """Assemble the input-ordered UV mesh from the packed islands (see module docstring)."""
+    F = len(prep.faces)
+    corner_node = np.full((F, 3), -1, np.int64)  # global island-vertex id per input corner
+    face_island = np.full(F, -1, np.int64)
+    node_work = np.concatenate([isl.work_vertex for isl in islands])
+    for i, isl in enumerate(islands):
+        in_faces = prep.input_face[isl.work_faces]
+        corner_node[in_faces] = isl.faces + offsets[i]
+        face_island[in_faces] = i
+    # degenerate faces: their corners' UVs in one island touching them
+    weld_of_work = np.full(len(prep.work_vertices), -1, np.int64)
+    from .uvmesh import weld_ids
+
+    weld = weld_ids(prep.vertices)
+    weld_of_work[prep.corner_vertex[prep.work_face >= 0].ravel()] = weld[prep.faces[prep.work_face >= 0].ravel()]
+    node_weld = weld_of_work[node_work]
+    node_island = np.repeat(np.arange(len(islands)), [len(isl.uv) for isl in islands])
+    lookup = {}
+    for n in range(len(node_weld) - 1, -1, -1):
+        lookup[(int(node_island[n]), int(node_weld[n]))] = n
+        lookup[(-1, int(node_weld[n]))] = n
+    isolated = 0
+    for f in np.flatnonzero(prep.work_face < 0):
+        w = weld[prep.faces[f]]
+        first = next((lookup[(-1, int(x))] for x in w if (-1, int(x)) in lookup), None)
+        if first is None:
+            isolated += 1
+            corner_node[f] = 0  # nowhere to sit: collapsed onto one UV point
+            face_island[f] = 0
+            continue
+        isl = int(node_island[first])
+        corner_node[f] = [lookup.get((isl, int(x)), first) for x in w]
+        face_island[f] = isl
+    # output vertex per (input vertex, node); a face repeating a vertex gets distinct copies
+    corner_key = np.stack([prep.faces.ravel(), corner_node.ravel()], 1)
+    rep = np.zeros((F, 3), np.int64)
+    fr = prep.faces
+    rep[:, 1] = fr[:, 1] == fr[:, 0]
+    rep[:, 2] = (fr[:, 2] == fr[:, 0]) | (fr[:, 2] == fr[:, 1])
+    rep[:, 2] += (fr[:, 2] == fr[:, 0]) & (fr[:, 2] == fr[:, 1])
+    corner_key = np.column_stack([corner_key, rep.ravel()])
+    uniq, inv = np.unique(corner_key, axis=0, return_inverse=True)
+    mesh = UVMesh(prep.vertices[uniq[:, 0]], inv.reshape(F, 3).astype(np.int64), packed_uv[uniq[:, 1]])
+    return mesh, face_island, {"isolated_degenerate_faces": isolated}
+
+
+def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
+    """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
+    cfg = cfg or UnwrapConfig()
+    t = {}
+    t0 = time.perf_counter()
+    prep = prepare_mesh(vertices, faces)
+    norm = charts.normalization
+    xyz = norm.apply(prep.work_vertices)
+    t["prepare"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    asg = assign_faces(xyz, prep.work_faces, chart_surfaces(charts), cfg.near_tol, cfg.far_tol)
+    area = triangle_areas(xyz, prep.work_faces)
+    comp = prep.component
+    reached = np.bincount(comp, weights=(~asg.far).astype(float), minlength=prep.n_components) > 0
+    fallback = ~reached[comp]
+    label = np.where(fallback, charts.n_charts + comp, asg.label)
+    t["assign"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    adj = face_adjacency(xyz, prep.work_faces)
+    label, clean_stats = clean_labels(label, area, comp, adj, cfg.min_fraction)
+    reg = regions(label, adj)
+    t["clean"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    fstats = {"region_splits": 0, "cut_edges": 0}
+    islands: list[Island] = []
+    order = np.argsort(reg, kind="stable")
+    bounds = np.searchsorted(reg[order], np.arange(int(reg.max()) + 2))
+    for r in range(int(reg.max()) + 1):
+        sel = order[bounds[r]:bounds[r + 1]]
+        islands += _flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
+    t["flatten"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    relax_stats = _relax(islands, cfg)
+    t["relax"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
+    all_uv = np.concatenate([isl.uv for isl in islands])
+    all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
+    all_island = np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands])
+    packing = pack_islands(all_uv, all_faces, all_island, resolution=cfg.resolution, padding=cfg.padding)
+    t["pack"] = time.perf_counter() - t0
+
+    mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)
+    total = float(area.sum())
+    stats = {
+        "input": prep.stats,
+        "assignment": {**asg.stats, "far_area_fraction": float(area[asg.far].sum() / total),
+                       "fallback_components": int((~reached).sum()),
+                       "fallback_faces": int(fallback.sum()),
+                       "fallback_area_fraction": float(area[fallback].sum() / total)},
+        "regions": clean_stats,
+        "islands": len(islands),
+        "flatten": fstats,
+        "relax": relax_stats,
+        "pack": {"utilization": packing.utilization, "packer": packing.packer, "scale": packing.scale,
+                 "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
+                 "padding": packing.padding},
+        **out_stats,
+        "config": asdict(cfg),
+        "timings": t,
+    }
+    return Unwrap(mesh, face_island, stats)
