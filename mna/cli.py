@@ -15,6 +15,7 @@ import sys
 COMMAND_MODULES = (
     "mna.commands.fit",
     "mna.commands.texture",
+    "mna.commands.unwrap",
     "mna.commands.render",
     "mna.commands.train",
     "mna.commands.demo",

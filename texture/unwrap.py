@@ -259,7 +259,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)
     total = float(area.sum())
     stats = {
-        "input": prep.stats,
+        "prepare": prep.stats,
         "assignment": {**asg.stats, "far_area_fraction": float(area[asg.far].sum() / total),
                        "fallback_components": int((~reached).sum()),
                        "fallback_faces": int(fallback.sum()),
