@@ -177,3 +177,28 @@ def signed_uv_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F,) signed UV area (positive = counter-clockwise)."""
     a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
     return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple[np.ndarray, dict]:
+    """SLIM on one disk (``uv`` at the isometric scale, flip-free): ``(uv, stats)``.
+
+    First free SLIM (``texture.relax.relax_island`` without the border-crossing guard): its
+    iterations may cross the border on the way and still end injective, and the guard's
+    pinning can stall far from the optimum (a 683-face bunny region: excess 4.17 guarded,
+    0.02 free). If the free result flips a face or crosses its border, the guarded run
+    (crossing-free after every iteration) is used instead; if that fails too, the start.
+    """
+    from .relax import crossing_edges, energy_excess, relax_island
+
+    def ok(u):
+        return np.isfinite(u).all() and (signed_uv_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))
+
+    free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
+    if ok(free.uv):
+        return free.uv, {"mode": "free", "iterations": free.iterations, "excess": free.excess_after}
+    guarded = relax_island(xyz, uv, faces, cfg, check_crossings=True)
+    if ok(guarded.uv):
+        return guarded.uv, {"mode": "guarded", "iterations": free.iterations + guarded.iterations,
+                            "excess": guarded.excess_after}
+    return uv, {"mode": "start", "iterations": free.iterations + guarded.iterations,
+                "excess": energy_excess(xyz, uv, faces)}

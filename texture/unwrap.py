@@ -34,12 +34,14 @@ import numpy as np
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .charts import ChartGrids
-from .flatten import cut_to_disk, signed_uv_areas, split_pinched, tutte
+from .flatten import cut_to_disk, relax_disk, signed_uv_areas, split_pinched, tutte
 from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions
-from .relax import RelaxConfig, crossing_edges, relax_meshes
+from .parallel import parallel_map
+from .relax import RelaxConfig, energy_excess
+from .slits import slit_island
 from .uvmesh import UVMesh
 
 
@@ -53,9 +55,9 @@ class UnwrapConfig:
     """Charts within this of the nearest (unit-ball frame) compete on domain depth."""
     far_tol: float = FAR_TOL
     """Samples farther than this from every chart are not reached by the fit."""
-    slim_iterations: int = 40
+    slim_iterations: int = 200
     """Most SLIM iterations per island."""
-    slim_min_gain: float = 1e-3
+    slim_min_gain: float = 1e-4
     """Stop an island's SLIM once an iteration gains less than this in mean energy excess."""
     resolution: int = 2048
     """Texture size the islands are packed for (texels)."""
@@ -63,6 +65,11 @@ class UnwrapConfig:
     """Gutter around each island (texels)."""
     max_split_depth: int = 6
     """A region that cannot be cut to a disk is halved at most this many times."""
+    slit_target: float = 0.1
+    """Islands whose energy excess (mean ``tr g + tr g^-1 - 4``) stays above this after SLIM
+    get slits (:mod:`texture.slits`)."""
+    max_slits: int = 8
+    """Most slits per island."""
 
 
 @dataclass
@@ -136,29 +143,48 @@ def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, 
     return out
 
 
+def _relax_job(job, _shared=None):
+    xyz, uv, faces, rcfg = job
+    return relax_disk(xyz, uv, faces, rcfg)
+
+
 def _relax(islands: list[Island], cfg: UnwrapConfig) -> dict:
+    """SLIM every island (:func:`texture.flatten.relax_disk`), largest first, in parallel processes."""
     rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
-    done = relax_meshes([(isl.xyz, isl.uv, isl.faces, np.zeros(len(isl.faces), np.int64)) for isl in islands],
-                        rcfg, scale=1.0)
-    st = {"slim_iterations_max": 0, "slim_stopped_by_crossing": 0, "flipped_islands": 0, "crossing_islands": 0,
-          "energy_before": 0.0, "energy_after": 0.0}
-    area = 0.0
-    for isl, (uv, s) in zip(islands, done):
-        signed = signed_uv_areas(uv, isl.faces)
-        if (signed <= 0).any() or len(crossing_edges(isl.faces, uv)):
-            # SLIM's result must be injective; keep the (flip-free, convex) Tutte start otherwise
-            st["flipped_islands"] += int((signed <= 0).any())
-            st["crossing_islands"] += int(len(crossing_edges(isl.faces, uv)) > 0)
-        else:
-            isl.uv = uv
-        st["slim_iterations_max"] = max(st["slim_iterations_max"], *s["iterations"]) if s["iterations"] else 0
-        st["slim_stopped_by_crossing"] += s["stopped_by_crossing"]
-        st["energy_before"] += s["energy_before"] * s["area"]
-        st["energy_after"] += s["energy_after"] * s["area"]
-        area += s["area"]
-    if area > 0:
-        st["energy_before"] /= area
-        st["energy_after"] /= area
+    order = sorted(range(len(islands)), key=lambda i: -len(islands[i].faces))
+    jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
+    done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
+    st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0}
+    for i, (uv, s) in zip(order, done):
+        islands[i].uv = uv
+        st["iterations_max"] = max(st["iterations_max"], s["iterations"])
+        st[{"free": "free", "guarded": "guarded", "start": "kept_start"}[s["mode"]]] += 1
+    return st
+
+
+def _slit_job(job, _shared=None):
+    xyz, faces, uv, rcfg, target, max_slits = job
+    return slit_island(xyz, faces, uv, rcfg, target, max_slits)
+
+
+def _slit(islands: list[Island], cfg: UnwrapConfig) -> dict:
+    """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel processes)."""
+    rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
+    todo = [i for i, isl in enumerate(islands)
+            if cfg.max_slits > 0 and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
+    jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits) for i in todo]
+    done = parallel_map(_slit_job, jobs, parallel=len(jobs) > 1)
+    st = {"islands_slit": 0, "slits": 0, "excess_before": [], "excess_after": []}
+    for i, r in zip(todo, done):
+        st["excess_before"].append(r.excess_before)
+        st["excess_after"].append(r.excess_after)
+        if r.slits == 0:
+            continue
+        isl = islands[i]
+        isl.faces, isl.uv, isl.xyz = r.faces, r.uv, isl.xyz[r.source]
+        isl.work_vertex = isl.work_vertex[r.source]
+        st["islands_slit"] += 1
+        st["slits"] += r.slits
     return st
 
 
@@ -249,6 +275,10 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t["relax"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    slit_stats = _slit(islands, cfg)
+    t["slits"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
     offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
     all_uv = np.concatenate([isl.uv for isl in islands])
     all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
@@ -268,6 +298,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
         "islands": len(islands),
         "flatten": fstats,
         "relax": relax_stats,
+        "slits": slit_stats,
         "pack": {"utilization": packing.utilization, "packer": packing.packer, "scale": packing.scale,
                  "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
                  "padding": packing.padding},
