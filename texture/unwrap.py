@@ -70,6 +70,8 @@ class UnwrapConfig:
     get slits (:mod:`texture.slits`)."""
     max_slits: int = 8
     """Most slits per island."""
+    split_target: float = 0.25
+    """Islands whose energy excess stays above this after slits are halved (and re-flattened)."""
 
 
 @dataclass
@@ -105,6 +107,20 @@ def _split_halves(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(lo), np.flatnonzero(~lo)]
 
 
+def _flatten_halves(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int, depth: int,
+                    stats: dict) -> list[Island]:
+    """:func:`_flatten_region` of each connected piece of the two halves of ``faces``."""
+    from .meshprep import face_components
+
+    out = []
+    for half in _split_halves(xyz, faces):
+        hv = face_components(faces[half])
+        for h in np.unique(hv):
+            part = half[hv == h]
+            out += _flatten_region(xyz, faces[part], work_faces[part], label, depth, stats)
+    return out
+
+
 def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,
                     depth: int, stats: dict) -> list[Island]:
     """Disk-cut and Tutte-embed one connected region (``faces`` index ``xyz``); see module docstring."""
@@ -128,12 +144,7 @@ def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, 
             if depth <= 0:
                 raise
             stats["region_splits"] += 1
-            for half in _split_halves(p, f):
-                from .regions import FaceAdjacency  # noqa: F401  (halves may be disconnected)
-                hv = face_components(f[half])
-                for h in np.unique(hv):
-                    part = half[hv == h]
-                    out += _flatten_region(p, f[part], work_faces[sel][part], label, depth - 1, stats)
+            out += _flatten_halves(xyz, vid[src[cv]][f], work_faces[sel], label, depth - 1, stats)
             continue
         stats["cut_edges"] += disk.cut_edges
         xyz_d = p[disk.source]
@@ -186,6 +197,28 @@ def _slit(islands: list[Island], cfg: UnwrapConfig) -> dict:
         st["islands_slit"] += 1
         st["slits"] += r.slits
     return st
+
+
+def _refine(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray,
+            cfg: UnwrapConfig) -> tuple[list[Island], dict]:
+    """Halve every island above ``cfg.split_target`` and flatten, relax and slit the halves,
+    at most ``cfg.max_split_depth`` rounds."""
+    st = {"islands_split": 0, "rounds": 0, "region_splits": 0, "cut_edges": 0}
+    for rnd in range(cfg.max_split_depth):
+        bad = [i for i, isl in enumerate(islands) if energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.split_target
+               and len(isl.faces) >= 2]
+        if not bad:
+            break
+        st["rounds"] = rnd + 1
+        new = []
+        for i in bad:
+            isl = islands[i]
+            new += _flatten_halves(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, st)
+        st["islands_split"] += len(bad)
+        _relax(new, cfg)
+        _slit(new, cfg)
+        islands = [isl for i, isl in enumerate(islands) if i not in set(bad)] + new
+    return islands, st
 
 
 def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np.ndarray) -> tuple[UVMesh, np.ndarray, dict]:
@@ -279,6 +312,10 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t["slits"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    islands, split_stats = _refine(islands, xyz, prep.work_faces, cfg)
+    t["split"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
     offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
     all_uv = np.concatenate([isl.uv for isl in islands])
     all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
@@ -299,6 +336,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
         "flatten": fstats,
         "relax": relax_stats,
         "slits": slit_stats,
+        "splits": split_stats,
         "pack": {"utilization": packing.utilization, "packer": packing.packer, "scale": packing.scale,
                  "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
                  "padding": packing.padding},
