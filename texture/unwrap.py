@@ -22,8 +22,9 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
 Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
 the same corner order, in the input frame; output vertex = one per distinct (input
 vertex, island vertex) pair, so input vertices are duplicated only along seams (and where
-the input was non-manifold, or a face repeats a vertex index). A degenerate face takes
-its corners' UVs in one neighbouring island (a zero-area UV triangle inside it).
+the input was non-manifold). A degenerate face (zero area or a repeated index) gets three
+vertices of its own (its corners' 3D positions) on one UV point of a neighbouring island:
+a zero-area UV triangle inside that island.
 """
 from __future__ import annotations
 
@@ -244,7 +245,8 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np
         lookup[(int(node_island[n]), int(node_weld[n]))] = n
         lookup[(-1, int(node_weld[n]))] = n
     isolated = 0
-    for f in np.flatnonzero(prep.work_face < 0):
+    degenerate = np.flatnonzero(prep.work_face < 0)
+    for f in degenerate:
         w = weld[prep.faces[f]]
         first = next((lookup[(-1, int(x))] for x in w if (-1, int(x)) in lookup), None)
         if first is None:
@@ -252,9 +254,10 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np
             corner_node[f] = 0  # nowhere to sit: collapsed onto one UV point
             face_island[f] = 0
             continue
-        isl = int(node_island[first])
-        corner_node[f] = [lookup.get((isl, int(x)), first) for x in w]
-        face_island[f] = isl
+        # all three corners on one UV point (own copies): zero UV area, so the face is
+        # skipped by the distortion measures instead of carrying a near-zero, signed UV area
+        corner_node[f] = first
+        face_island[f] = int(node_island[first])
     # output vertex per (input vertex, node); a face repeating a vertex gets distinct copies
     corner_key = np.stack([prep.faces.ravel(), corner_node.ravel()], 1)
     rep = np.zeros((F, 3), np.int64)
@@ -262,6 +265,7 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np
     rep[:, 1] = fr[:, 1] == fr[:, 0]
     rep[:, 2] = (fr[:, 2] == fr[:, 0]) | (fr[:, 2] == fr[:, 1])
     rep[:, 2] += (fr[:, 2] == fr[:, 0]) & (fr[:, 2] == fr[:, 1])
+    rep[degenerate] = [3, 4, 5]
     corner_key = np.column_stack([corner_key, rep.ravel()])
     uniq, inv = np.unique(corner_key, axis=0, return_inverse=True)
     mesh = UVMesh(prep.vertices[uniq[:, 0]], inv.reshape(F, 3).astype(np.int64), packed_uv[uniq[:, 1]])
