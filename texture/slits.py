@@ -26,6 +26,10 @@ from .geometry import triangle_areas
 from .relax import RelaxConfig, energy_excess
 
 
+#: stop slitting an island after this many slits in a row that did not lower its energy.
+MAX_MISSES = 2
+
+
 @dataclass
 class SlitResult:
     """Faces/UVs/positions of the (possibly) slit island; ``source (V,)``: vertex of the input island."""
@@ -101,6 +105,7 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
     before = energy_excess(xyz, uv, faces)
     best = SlitResult(faces, uv, source, 0, before, before)
     cur_faces, cur_uv, cur_src = faces, uv, source
+    misses = 0
     for k in range(max_slits):
         if best.excess_after <= target:
             break
@@ -120,4 +125,9 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
         excess = energy_excess(xyz[cur_src], cur_uv, cur_faces)
         if excess < best.excess_after:
             best = SlitResult(cur_faces, cur_uv, cur_src, k + 1, before, excess)
+            misses = 0
+        else:
+            misses += 1
+            if misses >= MAX_MISSES:  # two slits that did not help: halving will do better
+                break
     return best
