@@ -173,6 +173,16 @@ def tutte(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return uv
 
 
+def isometric_triangle(p: np.ndarray) -> np.ndarray:
+    """(3, 2) a triangle with the 3D corners ``p (3, 3)``'s edge lengths, counter-clockwise:
+    ``(0, 0)``, ``(|p1 - p0|, 0)`` and the third corner by projection onto edge 01."""
+    e1, e2 = p[1] - p[0], p[2] - p[0]
+    length = float(np.linalg.norm(e1))
+    x = float(e1 @ e2) / max(length, 1e-300)
+    y = float(np.sqrt(max(float(e2 @ e2) - x * x, 0.0)))
+    return np.array([[0.0, 0.0], [length, 0.0], [x, y]])
+
+
 def signed_uv_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F,) signed UV area (positive = counter-clockwise)."""
     a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]

@@ -35,7 +35,7 @@ import numpy as np
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .charts import ChartGrids
-from .flatten import cut_to_disk, relax_disk, signed_uv_areas, split_pinched, tutte
+from .flatten import cut_to_disk, isometric_triangle, relax_disk, signed_uv_areas, split_pinched, tutte
 from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
@@ -71,8 +71,14 @@ class UnwrapConfig:
     get slits (:mod:`texture.slits`)."""
     max_slits: int = 8
     """Most slits per island."""
-    split_target: float = 0.25
-    """Islands whose energy excess stays above this after slits are halved (and re-flattened)."""
+    whole_max_faces: int = 5_000
+    """Components the charts split into several regions are first tried whole (one island)
+    when they have at most this many faces (:func:`_whole_components`)."""
+    target_excess: float = 0.1
+    """While the area-weighted mean energy excess of all islands (about the metric distortion)
+    exceeds this after slits, the island contributing most is halved and re-flattened."""
+    max_split_rounds: int = 16
+    """Most halvings for ``target_excess``."""
 
 
 @dataclass
@@ -138,7 +144,11 @@ def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, 
         p = xyz[vid[src[cv]]]
         try:
             disk = cut_to_disk(p, f)
-            uv = tutte(p[disk.source], disk.faces)
+            if len(disk.faces) == 1:  # SLIM needs two faces: place a lone triangle isometrically
+                uv = np.zeros((len(disk.source), 2))
+                uv[disk.faces[0]] = isometric_triangle(p[disk.source][disk.faces[0]])
+            else:
+                uv = tutte(p[disk.source], disk.faces)
             if not np.isfinite(uv).all() or (signed_uv_areas(uv, disk.faces) <= 0).any():
                 raise RuntimeError("Tutte embedding folded (numerically)")
         except (RuntimeError, ValueError, KeyError, IndexError):
@@ -153,6 +163,40 @@ def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, 
         uv *= np.sqrt(area3 / area_uv)
         out.append(Island(disk.faces, uv, xyz_d, work_faces[sel], vid[src[cv]][disk.source], label))
     return out
+
+
+#: label of the islands of a component flattened whole (:func:`_whole_components`).
+WHOLE = -1
+
+
+def _whole_components(xyz, work_faces, comp, reg, cfg: UnwrapConfig, fstats: dict) -> tuple[list[Island], set]:
+    """(islands, components): components the charts split into several regions that flatten
+    *whole* (cut to a disk, Tutte, SLIM, slits) within ``cfg.slit_target`` energy excess.
+
+    The charts are fitted to the whole shape, so on a many-part shape one chart often
+    covers halves of several small parts (a wheel split between two charts); a part that
+    flattens as one island needs no seam between them. Tried on components of at most
+    ``cfg.whole_max_faces`` faces. Slits are cut here already (they are kept).
+    """
+    pairs = np.unique(np.stack([comp, reg], 1), axis=0)
+    n_reg = np.bincount(pairs[:, 0], minlength=int(comp.max()) + 1)
+    sizes = np.bincount(comp)
+    trial: dict[int, list[Island]] = {}
+    for c in np.flatnonzero((n_reg > 1) & (sizes <= cfg.whole_max_faces)):
+        sel = np.flatnonzero(comp == c)
+        try:
+            trial[int(c)] = _flatten_region(xyz, work_faces[sel], sel, WHOLE, 0, {"region_splits": 0, "cut_edges": 0})
+        except (RuntimeError, ValueError, KeyError, IndexError):
+            continue
+    tried = [isl for isls in trial.values() for isl in isls]
+    _relax(tried, cfg)
+    _slit(tried, cfg)
+    islands, whole = [], set()
+    for c, isls in trial.items():
+        if all(energy_excess(isl.xyz, isl.uv, isl.faces) <= cfg.slit_target for isl in isls):
+            whole.add(c)
+            islands += isls
+    return islands, whole
 
 
 def _relax_job(job, _shared=None):
@@ -202,23 +246,40 @@ def _slit(islands: list[Island], cfg: UnwrapConfig) -> dict:
 
 def _refine(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray,
             cfg: UnwrapConfig) -> tuple[list[Island], dict]:
-    """Halve every island above ``cfg.split_target`` and flatten, relax and slit the halves,
-    at most ``cfg.max_split_depth`` rounds."""
-    st = {"islands_split": 0, "rounds": 0, "region_splits": 0, "cut_edges": 0}
-    for rnd in range(cfg.max_split_depth):
-        bad = [i for i, isl in enumerate(islands) if energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.split_target
-               and len(isl.faces) >= 2]
-        if not bad:
+    """While the area-weighted mean energy excess of all islands exceeds ``cfg.target_excess``,
+    halve the island that contributes most to it (its area times its excess) and flatten,
+    relax and slit the halves; at most ``cfg.max_split_rounds`` rounds. One island at a time
+    keeps the count low where a single island carries the distortion."""
+    st = {"islands_split": 0, "region_splits": 0, "cut_edges": 0}
+    area = [float(triangle_areas(isl.xyz, isl.faces).sum()) for isl in islands]
+    excess = [energy_excess(isl.xyz, isl.uv, isl.faces) for isl in islands]
+    frozen = [False] * len(islands)  # halving did not lower this island's contribution
+    for _ in range(cfg.max_split_rounds):
+        a, e = np.asarray(area), np.asarray(excess)
+        e = np.where(np.isfinite(e), e, 1e6)
+        if (a * e).sum() / a.sum() <= cfg.target_excess:
             break
-        st["rounds"] = rnd + 1
-        new = []
-        for i in bad:
-            isl = islands[i]
-            new += _flatten_halves(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, st)
-        st["islands_split"] += len(bad)
+        splittable = np.array([len(isl.faces) >= 2 and not fz for isl, fz in zip(islands, frozen)])
+        if not splittable.any():
+            break
+        i = int(np.argmax(np.where(splittable, a * e, -1.0)))
+        isl = islands[i]
+        new = _flatten_halves(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, st)
         _relax(new, cfg)
         _slit(new, cfg)
-        islands = [isl for i, isl in enumerate(islands) if i not in set(bad)] + new
+        new_area = [float(triangle_areas(n.xyz, n.faces).sum()) for n in new]
+        new_excess = [energy_excess(n.xyz, n.uv, n.faces) for n in new]
+        if not np.isfinite(new_excess).all() or np.dot(new_area, new_excess) >= a[i] * e[i]:
+            frozen[i] = True  # the halves are no better (a crease or a sliver, not the cut, is to blame)
+            st["splits_rejected"] = st.get("splits_rejected", 0) + 1
+            continue
+        st["islands_split"] += 1
+        islands = islands[:i] + islands[i + 1:] + new
+        area = area[:i] + area[i + 1:] + new_area
+        excess = excess[:i] + excess[i + 1:] + new_excess
+        frozen = frozen[:i] + frozen[i + 1:] + [False] * len(new)
+    a, e = np.asarray(area), np.asarray(excess)
+    st["mean_excess"] = float((a * e).sum() / a.sum())
     return islands, st
 
 
@@ -299,20 +360,25 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
 
     t0 = time.perf_counter()
     fstats = {"region_splits": 0, "cut_edges": 0}
-    islands: list[Island] = []
+    islands, whole = _whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
+    fstats["whole_components"] = len(whole)
+    t["whole"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     order = np.argsort(reg, kind="stable")
     bounds = np.searchsorted(reg[order], np.arange(int(reg.max()) + 2))
     for r in range(int(reg.max()) + 1):
         sel = order[bounds[r]:bounds[r + 1]]
+        if comp[sel[0]] in whole:
+            continue
         islands += _flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
     t["flatten"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    relax_stats = _relax(islands, cfg)
+    relax_stats = _relax([isl for isl in islands if isl.label != WHOLE], cfg)
     t["relax"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    slit_stats = _slit(islands, cfg)
+    slit_stats = _slit([isl for isl in islands if isl.label != WHOLE], cfg)
     t["slits"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
