@@ -32,7 +32,6 @@ class FaceAdjacency:
 
 def face_adjacency(vertices: np.ndarray, faces: np.ndarray) -> FaceAdjacency:
     """Pairs of faces sharing an edge used by exactly two faces (a manifold working mesh)."""
-    F = len(faces)
     he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
     n = int(faces.max()) + 1
     key = he.min(1) * n + he.max(1)
@@ -42,7 +41,6 @@ def face_adjacency(vertices: np.ndarray, faces: np.ndarray) -> FaceAdjacency:
     # an edge used three times would pair twice; the working mesh has none
     h1, h2 = order[same], order[same + 1]
     length = np.linalg.norm(vertices[he[h1, 0]] - vertices[he[h1, 1]], axis=1)
-    del F
     return FaceAdjacency(h1 // 3, h2 // 3, length)
 
 

@@ -35,15 +35,12 @@ import numpy as np
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .charts import ChartGrids
-from .flatten import cut_to_disk, isometric_triangle, relax_disk, signed_uv_areas, split_pinched, tutte
 from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions
-from .parallel import parallel_map
-from .relax import RelaxConfig, energy_excess
-from .slits import slit_island
-from .uvmesh import UVMesh
+from .unwrap_islands import WHOLE, Island, flatten_region, refine_islands, relax_islands, slit_islands, whole_components
+from .uvmesh import UVMesh, weld_ids
 
 
 @dataclass
@@ -82,19 +79,6 @@ class UnwrapConfig:
 
 
 @dataclass
-class Island:
-    """One flattened island: ``faces (Fi, 3)`` into ``uv (Vi, 2)``; ``work_faces (Fi,)``
-    working face of each face; ``work_vertex (Vi,)`` working vertex of each vertex."""
-
-    faces: np.ndarray
-    uv: np.ndarray
-    xyz: np.ndarray
-    work_faces: np.ndarray
-    work_vertex: np.ndarray
-    label: int
-
-
-@dataclass
 class Unwrap:
     """Result of :func:`unwrap_mesh`: the UV mesh (input frame), island per face, stats."""
 
@@ -103,187 +87,8 @@ class Unwrap:
     stats: dict = field(default_factory=dict)
 
 
-def _split_halves(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
-    """Face index sets of the two halves of a region across its longest bounding-box axis."""
-    c = vertices[faces].mean(1)
-    axis = int(np.argmax(np.ptp(c, 0)))
-    med = np.median(c[:, axis])
-    lo = c[:, axis] <= med
-    if lo.all() or not lo.any():
-        lo = np.arange(len(faces)) < len(faces) // 2
-    return [np.flatnonzero(lo), np.flatnonzero(~lo)]
-
-
-def _flatten_halves(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int, depth: int,
-                    stats: dict) -> list[Island]:
-    """:func:`_flatten_region` of each connected piece of the two halves of ``faces``."""
-    from .meshprep import face_components
-
-    out = []
-    for half in _split_halves(xyz, faces):
-        hv = face_components(faces[half])
-        for h in np.unique(hv):
-            part = half[hv == h]
-            out += _flatten_region(xyz, faces[part], work_faces[part], label, depth, stats)
-    return out
-
-
-def _flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,
-                    depth: int, stats: dict) -> list[Island]:
-    """Disk-cut and Tutte-embed one connected region (``faces`` index ``xyz``); see module docstring."""
-    from .meshprep import face_components
-
-    vid, inv = np.unique(faces, return_inverse=True)
-    local = inv.reshape(-1, 3)
-    split, src = split_pinched(local)
-    out = []
-    for comp in np.unique(face_components(split)):  # a pinch split can separate pieces
-        sel = np.flatnonzero(face_components(split) == comp)
-        cv, ci = np.unique(split[sel], return_inverse=True)
-        f = ci.reshape(-1, 3)
-        p = xyz[vid[src[cv]]]
-        try:
-            disk = cut_to_disk(p, f)
-            if len(disk.faces) == 1:  # SLIM needs two faces: place a lone triangle isometrically
-                uv = np.zeros((len(disk.source), 2))
-                uv[disk.faces[0]] = isometric_triangle(p[disk.source][disk.faces[0]])
-            else:
-                uv = tutte(p[disk.source], disk.faces)
-            if not np.isfinite(uv).all() or (signed_uv_areas(uv, disk.faces) <= 0).any():
-                raise RuntimeError("Tutte embedding folded (numerically)")
-        except (RuntimeError, ValueError, KeyError, IndexError):
-            if depth <= 0:
-                raise
-            stats["region_splits"] += 1
-            out += _flatten_halves(xyz, vid[src[cv]][f], work_faces[sel], label, depth - 1, stats)
-            continue
-        stats["cut_edges"] += disk.cut_edges
-        xyz_d = p[disk.source]
-        area3, area_uv = triangle_areas(xyz_d, disk.faces).sum(), signed_uv_areas(uv, disk.faces).sum()
-        uv *= np.sqrt(area3 / area_uv)
-        out.append(Island(disk.faces, uv, xyz_d, work_faces[sel], vid[src[cv]][disk.source], label))
-    return out
-
-
-#: label of the islands of a component flattened whole (:func:`_whole_components`).
-WHOLE = -1
-
-
-def _whole_components(xyz, work_faces, comp, reg, cfg: UnwrapConfig, fstats: dict) -> tuple[list[Island], set]:
-    """(islands, components): components the charts split into several regions that flatten
-    *whole* (cut to a disk, Tutte, SLIM, slits) within ``cfg.slit_target`` energy excess.
-
-    The charts are fitted to the whole shape, so on a many-part shape one chart often
-    covers halves of several small parts (a wheel split between two charts); a part that
-    flattens as one island needs no seam between them. Tried on components of at most
-    ``cfg.whole_max_faces`` faces. Slits are cut here already (they are kept).
-    """
-    pairs = np.unique(np.stack([comp, reg], 1), axis=0)
-    n_reg = np.bincount(pairs[:, 0], minlength=int(comp.max()) + 1)
-    sizes = np.bincount(comp)
-    trial: dict[int, list[Island]] = {}
-    for c in np.flatnonzero((n_reg > 1) & (sizes <= cfg.whole_max_faces)):
-        sel = np.flatnonzero(comp == c)
-        try:
-            trial[int(c)] = _flatten_region(xyz, work_faces[sel], sel, WHOLE, 0, {"region_splits": 0, "cut_edges": 0})
-        except (RuntimeError, ValueError, KeyError, IndexError):
-            continue
-    tried = [isl for isls in trial.values() for isl in isls]
-    _relax(tried, cfg)
-    _slit(tried, cfg)
-    islands, whole = [], set()
-    for c, isls in trial.items():
-        if all(energy_excess(isl.xyz, isl.uv, isl.faces) <= cfg.slit_target for isl in isls):
-            whole.add(c)
-            islands += isls
-    return islands, whole
-
-
-def _relax_job(job, _shared=None):
-    xyz, uv, faces, rcfg = job
-    return relax_disk(xyz, uv, faces, rcfg)
-
-
-def _relax(islands: list[Island], cfg: UnwrapConfig) -> dict:
-    """SLIM every island (:func:`texture.flatten.relax_disk`), largest first, in parallel processes."""
-    rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
-    order = sorted(range(len(islands)), key=lambda i: -len(islands[i].faces))
-    jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
-    done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
-    st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0}
-    for i, (uv, s) in zip(order, done):
-        islands[i].uv = uv
-        st["iterations_max"] = max(st["iterations_max"], s["iterations"])
-        st[{"free": "free", "guarded": "guarded", "start": "kept_start"}[s["mode"]]] += 1
-    return st
-
-
-def _slit_job(job, _shared=None):
-    xyz, faces, uv, rcfg, target, max_slits = job
-    return slit_island(xyz, faces, uv, rcfg, target, max_slits)
-
-
-def _slit(islands: list[Island], cfg: UnwrapConfig) -> dict:
-    """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel processes)."""
-    rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
-    todo = [i for i, isl in enumerate(islands)
-            if cfg.max_slits > 0 and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
-    jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits) for i in todo]
-    done = parallel_map(_slit_job, jobs, parallel=len(jobs) > 1)
-    st = {"islands_slit": 0, "slits": 0, "excess_before": [], "excess_after": []}
-    for i, r in zip(todo, done):
-        st["excess_before"].append(r.excess_before)
-        st["excess_after"].append(r.excess_after)
-        if r.slits == 0:
-            continue
-        isl = islands[i]
-        isl.faces, isl.uv, isl.xyz = r.faces, r.uv, isl.xyz[r.source]
-        isl.work_vertex = isl.work_vertex[r.source]
-        st["islands_slit"] += 1
-        st["slits"] += r.slits
-    return st
-
-
-def _refine(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray,
-            cfg: UnwrapConfig) -> tuple[list[Island], dict]:
-    """While the area-weighted mean energy excess of all islands exceeds ``cfg.target_excess``,
-    halve the island that contributes most to it (its area times its excess) and flatten,
-    relax and slit the halves; at most ``cfg.max_split_rounds`` rounds. One island at a time
-    keeps the count low where a single island carries the distortion."""
-    st = {"islands_split": 0, "region_splits": 0, "cut_edges": 0}
-    area = [float(triangle_areas(isl.xyz, isl.faces).sum()) for isl in islands]
-    excess = [energy_excess(isl.xyz, isl.uv, isl.faces) for isl in islands]
-    frozen = [False] * len(islands)  # halving did not lower this island's contribution
-    for _ in range(cfg.max_split_rounds):
-        a, e = np.asarray(area), np.asarray(excess)
-        e = np.where(np.isfinite(e), e, 1e6)
-        if (a * e).sum() / a.sum() <= cfg.target_excess:
-            break
-        splittable = np.array([len(isl.faces) >= 2 and not fz for isl, fz in zip(islands, frozen)])
-        if not splittable.any():
-            break
-        i = int(np.argmax(np.where(splittable, a * e, -1.0)))
-        isl = islands[i]
-        new = _flatten_halves(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, st)
-        _relax(new, cfg)
-        _slit(new, cfg)
-        new_area = [float(triangle_areas(n.xyz, n.faces).sum()) for n in new]
-        new_excess = [energy_excess(n.xyz, n.uv, n.faces) for n in new]
-        if not np.isfinite(new_excess).all() or np.dot(new_area, new_excess) >= a[i] * e[i]:
-            frozen[i] = True  # the halves are no better (a crease or a sliver, not the cut, is to blame)
-            st["splits_rejected"] = st.get("splits_rejected", 0) + 1
-            continue
-        st["islands_split"] += 1
-        islands = islands[:i] + islands[i + 1:] + new
-        area = area[:i] + area[i + 1:] + new_area
-        excess = excess[:i] + excess[i + 1:] + new_excess
-        frozen = frozen[:i] + frozen[i + 1:] + [False] * len(new)
-    a, e = np.asarray(area), np.asarray(excess)
-    st["mean_excess"] = float((a * e).sum() / a.sum())
-    return islands, st
-
-
-def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np.ndarray) -> tuple[UVMesh, np.ndarray, dict]:
+def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
+                 offsets: np.ndarray) -> tuple[UVMesh, np.ndarray, dict]:
     """Assemble the input-ordered UV mesh from the packed islands (see module docstring)."""
     F = len(prep.faces)
     corner_node = np.full((F, 3), -1, np.int64)  # global island-vertex id per input corner
@@ -295,8 +100,6 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray, offsets: np
         face_island[in_faces] = i
     # degenerate faces: their corners' UVs in one island touching them
     weld_of_work = np.full(len(prep.work_vertices), -1, np.int64)
-    from .uvmesh import weld_ids
-
     weld = weld_ids(prep.vertices)
     weld_of_work[prep.corner_vertex[prep.work_face >= 0].ravel()] = weld[prep.faces[prep.work_face >= 0].ravel()]
     node_weld = weld_of_work[node_work]
@@ -360,7 +163,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
 
     t0 = time.perf_counter()
     fstats = {"region_splits": 0, "cut_edges": 0}
-    islands, whole = _whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
+    islands, whole = whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
     fstats["whole_components"] = len(whole)
     t["whole"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -370,19 +173,19 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
         sel = order[bounds[r]:bounds[r + 1]]
         if comp[sel[0]] in whole:
             continue
-        islands += _flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
+        islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
     t["flatten"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    relax_stats = _relax([isl for isl in islands if isl.label != WHOLE], cfg)
+    relax_stats = relax_islands([isl for isl in islands if isl.label != WHOLE], cfg)
     t["relax"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    slit_stats = _slit([isl for isl in islands if isl.label != WHOLE], cfg)
+    slit_stats = slit_islands([isl for isl in islands if isl.label != WHOLE], cfg)
     t["slits"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    islands, split_stats = _refine(islands, xyz, prep.work_faces, cfg)
+    islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
     t["split"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

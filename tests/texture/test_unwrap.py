@@ -17,7 +17,7 @@ from texture.harness import measure
 from texture.meshprep import prepare_mesh
 from texture.regions import clean_labels, face_adjacency, regions
 from texture.unwrap import UnwrapConfig, unwrap_mesh
-from texture.uvmesh import unit_ball_normalization, weld_ids
+from texture.uvmesh import unit_ball_normalization
 from texture_helpers import sphere_charts, SCALE, CENTER
 from texture.uvmesh import Normalization
 
