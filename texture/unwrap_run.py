@@ -63,6 +63,18 @@ def load_unwrap_input(path: str | os.PathLike) -> UnwrapInput:
     return UnwrapInput(mesh, vertices, faces, uv is not None and len(uv) > 0, str(path))
 
 
+def _bake_source(inp: UnwrapInput):
+    """The input as trimesh reads it by default, with its colours or texture (an OBJ read with
+    its own vertex order, as unwrapping needs, loses its texture visuals)."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(inp.path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types on unreadable files
+        raise InputError(f"cannot read {inp.path} for --texture bake: {exc}") from None
+    return mesh
+
+
 def check_options(texture: str, size, padding) -> tuple[int, int]:
     """Validated ``(size, padding)``; raises ``InputError`` naming the option."""
     if texture not in TEXTURES:
@@ -83,8 +95,10 @@ def unwrap_to_folder(inp: UnwrapInput, run: str | os.PathLike, out: str | os.Pat
     """Unwrap ``inp`` with ``RUN``'s charts into ``OUT``; returns the ``unwrap.json`` content."""
     size, pad = check_options(texture, size, padding)
     charts = load_charts(Path(run) / "charts.npz")
+    bake_source = None
     if texture == "bake":
-        source_colors(inp.mesh)  # fail before the slow part when there is nothing to bake
+        bake_source = _bake_source(inp)
+        source_colors(bake_source)  # fail before the slow part when there is nothing to bake
     cfg = cfg or UnwrapConfig()
     cfg.resolution, cfg.padding = size, pad
     t0 = time.perf_counter()
@@ -93,8 +107,8 @@ def unwrap_to_folder(inp: UnwrapInput, run: str | os.PathLike, out: str | os.Pat
     norm = charts.normalization
     source = None
     if texture == "bake":
-        source = inp.mesh.copy()
-        source.vertices = norm.apply(inp.mesh.vertices)
+        source = bake_source.copy()
+        source.vertices = norm.apply(bake_source.vertices)
     image = make_texture(texture, result.mesh.transformed(norm), size, pad, source, square_size)
     t2 = time.perf_counter()
     out = Path(out)
