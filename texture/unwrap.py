@@ -35,6 +35,7 @@ import numpy as np
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .charts import ChartGrids
+from .flatten import signed_uv_areas
 from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
@@ -71,11 +72,11 @@ class UnwrapConfig:
     whole_max_faces: int = 5_000
     """Components the charts split into several regions are first tried whole (one island)
     when they have at most this many faces (:func:`_whole_components`)."""
-    target_excess: float = 0.1
-    """While the area-weighted mean energy excess of all islands (about the metric distortion)
-    exceeds this after slits, the island contributing most is halved and re-flattened."""
+    target_distortion: float = 0.14
+    """While the islands' distortion_metric (the harness's formula) exceeds this after slits,
+    the island contributing most is halved and re-flattened (issue target: 0.15)."""
     max_split_rounds: int = 16
-    """Most halvings for ``target_excess``."""
+    """Most halvings for ``target_distortion``."""
 
 
 @dataclass
@@ -136,6 +137,29 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
     return mesh, face_island, {"isolated_degenerate_faces": isolated}
 
 
+def _unmirror(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, resolution: int) -> tuple[np.ndarray, int]:
+    """Reflect back (in u, about its bounding box's centre) every island the packer placed
+    mirrored (xatlas may reflect a chart, and texture.pack keeps a clear reflection), so no
+    island is mirrored as seen from outside; kept only if the packing stays overlap-free.
+
+    Returns ``(uv, islands reflected back)``.
+    """
+    from .pack import verify_packing
+
+    area = np.bincount(island, weights=signed_uv_areas(uv, faces))
+    bad = np.flatnonzero(area < 0)
+    if len(bad) == 0:
+        return uv, 0
+    out = uv.copy()
+    for k in bad:
+        v = np.unique(faces[island == k])
+        lo, hi = out[v, 0].min(), out[v, 0].max()
+        out[v, 0] = lo + hi - out[v, 0]
+    if verify_packing(out, faces, island, resolution)[0] > 0:
+        return uv, 0
+    return out, len(bad)
+
+
 def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
     """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
     cfg = cfg or UnwrapConfig()
@@ -189,14 +213,22 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t["split"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    # every island counter-clockwise like the input's winding (no island mirrored as seen
+    # from outside): an island whose faces all turned clockwise is reflected in u
+    mirrored = 0
+    for isl in islands:
+        if signed_uv_areas(isl.uv, isl.faces).sum() < 0:
+            isl.uv = isl.uv * np.array([-1.0, 1.0])
+            mirrored += 1
     offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
     all_uv = np.concatenate([isl.uv for isl in islands])
     all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
     all_island = np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands])
     packing = pack_islands(all_uv, all_faces, all_island, resolution=cfg.resolution, padding=cfg.padding)
+    packed_uv, unmirrored = _unmirror(packing.uv, all_faces, all_island, cfg.resolution)
     t["pack"] = time.perf_counter() - t0
 
-    mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)
+    mesh, face_island, out_stats = _output_mesh(prep, islands, packed_uv, offsets)
     total = float(area.sum())
     stats = {
         "prepare": prep.stats,
@@ -214,6 +246,8 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
                  "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
                  "padding": packing.padding},
         **out_stats,
+        "islands_reflected": mirrored,
+        "islands_unmirrored_after_packing": unmirrored,
         "config": asdict(cfg),
         "timings": t,
     }
