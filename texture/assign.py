@@ -67,7 +67,8 @@ def chart_surfaces(charts: ChartGrids, max_grid: int = MAX_GRID) -> list[ChartSu
     out = []
     for k in range(charts.n_charts):
         inside = charts.occ[k] > charts.tau
-        depth = distance_transform_edt(inside)[::step, ::step].ravel() / step
+        # the square's edge is the domain's border too: pad with out-of-domain cells
+        depth = distance_transform_edt(np.pad(inside, 1))[1:-1, 1:-1][::step, ::step].ravel() / step
         inside = inside[::step, ::step]
         xyz = charts.normalization.apply(charts.xyz[k, ::step, ::step].reshape(-1, 3))
         keep = inside.ravel()[grid_faces].all(1)

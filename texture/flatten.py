@@ -189,6 +189,10 @@ def signed_uv_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
 
 
+#: border-pinning retries of the guarded SLIM run (texture.relax's default is 4).
+GUARD_PIN_ROUNDS = 16
+
+
 def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple[np.ndarray, dict]:
     """SLIM on one disk (``uv`` at the isometric scale, flip-free): ``(uv, stats)``.
 
@@ -206,7 +210,9 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
     if ok(free.uv):
         return free.uv, {"mode": "free", "iterations": free.iterations, "excess": free.excess_after}
-    guarded = relax_island(xyz, uv, faces, cfg, check_crossings=True)
+    from dataclasses import replace
+
+    guarded = relax_island(xyz, uv, faces, replace(cfg, pin_rounds=GUARD_PIN_ROUNDS), check_crossings=True)
     if ok(guarded.uv):
         return guarded.uv, {"mode": "guarded", "iterations": free.iterations + guarded.iterations,
                             "excess": guarded.excess_after}

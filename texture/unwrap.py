@@ -40,7 +40,8 @@ from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions
-from .unwrap_islands import WHOLE, Island, flatten_region, refine_islands, relax_islands, slit_islands, whole_components
+from .unwrap_islands import (WHOLE, Island, flatten_region, prefer_whole, refine_islands, relax_islands, slit_islands,
+                             whole_components)
 from .uvmesh import UVMesh, weld_ids
 
 
@@ -207,6 +208,9 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t0 = time.perf_counter()
     slit_stats = slit_islands([isl for isl in islands if isl.label != WHOLE], cfg)
     t["slits"] = time.perf_counter() - t0
+
+    islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), comp)
+    fstats["whole_preferred"] = swapped
 
     t0 = time.perf_counter()
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)

@@ -157,11 +157,31 @@ def whole_components(xyz, work_faces, comp, reg, cfg, fstats: dict) -> tuple[lis
     relax_islands(tried, cfg)
     slit_islands(tried, cfg)
     islands, whole = [], set()
-    for c, isls in trial.items():
+    for c, isls in list(trial.items()):
         if all(energy_excess(isl.xyz, isl.uv, isl.faces) <= cfg.slit_target for isl in isls):
             whole.add(c)
             islands += isls
+            del trial[c]
+    fstats["whole_trials"] = trial  # the rest, for prefer_whole once the chart regions are flat
     return islands, whole
+
+
+def _contribution(isls: list[Island]) -> float:
+    """Sum of 3D area times energy excess (inf if an island has a degenerate UV face)."""
+    return float(sum(triangle_areas(i.xyz, i.faces).sum() * energy_excess(i.xyz, i.uv, i.faces) for i in isls))
+
+
+def prefer_whole(islands: list[Island], trials: dict, comp: np.ndarray) -> tuple[list[Island], int]:
+    """Replace a component's chart-region islands by its whole flattening (``trials``: component
+    -> islands of :func:`whole_components` that missed ``slit_target``) when that distorts less
+    (area times excess): the charts' cut did not help there. Returns (islands, components swapped)."""
+    swapped = 0
+    for c, whole in trials.items():
+        mine = [isl for isl in islands if isl.label != WHOLE and comp[isl.work_faces[0]] == c]
+        if mine and _contribution(whole) < _contribution(mine):
+            islands = [isl for isl in islands if isl.label == WHOLE or comp[isl.work_faces[0]] != c] + whole
+            swapped += 1
+    return islands, swapped
 
 
 def _relax_job(job, _shared=None):

@@ -191,3 +191,50 @@ def test_clean_labels_merges_specks_into_the_longest_border_neighbour():
     new, st = clean_labels(label, area, np.zeros(len(f), np.int64), adj, min_fraction=0.015)
     assert st["raw_regions"] == 3 and st["regions"] == 2
     assert (new[speck] == 0).all() and (new[c[:, 0] > 0] == 1).all()
+
+
+def test_assignment_prefers_the_chart_whose_domain_is_deeper():
+    """Chart A lies exactly on a flat sheet but its domain ends at x = 0.1; chart B floats
+    0.005 above (within NEAR_TOL) over the whole square. Near A's domain border B wins; deep
+    in A's domain (and near B's square border) A wins; a plain nearest-chart rule gives A
+    everywhere A exists."""
+    from texture.assign import assign_faces, chart_surfaces
+
+    G = 61
+    lin = np.linspace(-1, 1, G)
+    u, v = np.meshgrid(lin, lin, indexing="xy")
+    xyz_a = np.stack([0.6 * u, 0.6 * v, 0 * u], -1)
+    xyz_b = np.stack([0.6 * u, 0.6 * v, 0 * u + 0.005], -1)
+    occ_a = np.where(0.6 * u < 0.1, 1.0, 0.0)
+    charts = ChartGrids(np.stack([np.stack([u, v], -1)] * 2), np.stack([xyz_a, xyz_b]),
+                        np.stack([occ_a, np.ones_like(occ_a)]), 0.5, Normalization(np.zeros(3), 1.0))
+    sheet = shapes.sheet(size=1.0, resolution=21)
+    v3, f = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    asg = assign_faces(v3, f, chart_surfaces(charts))
+    c = v3[f].mean(1)
+    assert (asg.label[(c[:, 0] < -0.4) & (np.abs(c[:, 1]) < 0.2)] == 0).all()  # deep in A, near B's border
+    assert (asg.label[(c[:, 0] > -0.05) & (c[:, 0] < 0.05) & (np.abs(c[:, 1]) < 0.2)] == 1).all()  # A's border
+    assert (asg.label[c[:, 0] > 0.2] == 1).all()  # only B reaches there
+    assert asg.stats["far_faces"] == 0
+
+
+def test_slits_lower_the_energy_of_a_cap_and_keep_a_disk():
+    from texture.flatten import is_disk, tutte
+    from texture.relax import RelaxConfig, energy_excess
+    from texture.slits import slit_island
+
+    s = shapes.sphere(subdivisions=3)
+    keep = s.vertices[s.faces].mean(1)[:, 2] > -0.3  # more than a hemisphere: a bag
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    assert is_disk(faces)
+    uv = tutte(xyz, faces)
+    uv *= np.sqrt(trimesh.triangles.area(xyz[faces]).sum() / signed_uv_areas(uv, faces).sum())
+    cfg = RelaxConfig(iterations=100, min_gain=1e-4)
+    from texture.flatten import relax_disk
+    uv, _ = relax_disk(xyz, uv, faces, cfg)
+    before = energy_excess(xyz, uv, faces)
+    r = slit_island(xyz, faces, uv, cfg, target=0.05, max_slits=4)
+    assert r.slits >= 1 and r.excess_after < 0.8 * before
+    assert is_disk(r.faces) and (signed_uv_areas(r.uv, r.faces) > 0).all()
+    np.testing.assert_array_equal(xyz[r.source][r.faces].shape, (len(faces), 3, 3))
