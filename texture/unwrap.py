@@ -39,7 +39,7 @@ from .flatten import signed_uv_areas
 from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
-from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions
+from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
 from .unwrap_islands import (WHOLE, Island, flatten_region, prefer_whole, refine_islands, relax_islands, slit_islands,
                              whole_components)
 from .uvmesh import UVMesh, weld_ids
@@ -51,6 +51,8 @@ class UnwrapConfig:
 
     min_fraction: float = MIN_FRACTION
     """Regions below this fraction of their component's area merge into a neighbour."""
+    smooth_passes: int = 20
+    """Most border-smoothing sweeps before merging (:func:`texture.regions.smooth_borders`; 0 = off)."""
     near_tol: float = NEAR_TOL
     """Charts within this of the nearest (unit-ball frame) compete on domain depth."""
     far_tol: float = FAR_TOL
@@ -182,7 +184,9 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
 
     t0 = time.perf_counter()
     adj = face_adjacency(xyz, prep.work_faces)
+    label, smoothed = smooth_borders(label, adj, cfg.smooth_passes)
     label, clean_stats = clean_labels(label, area, comp, adj, cfg.min_fraction)
+    clean_stats["smoothed_faces"] = smoothed
     reg = regions(label, adj)
     t["clean"] = time.perf_counter() - t0
 

@@ -238,3 +238,26 @@ def test_slits_lower_the_energy_of_a_cap_and_keep_a_disk():
     assert r.slits >= 1 and r.excess_after < 0.8 * before
     assert is_disk(r.faces) and (signed_uv_areas(r.uv, r.faces) > 0).all()
     np.testing.assert_array_equal(xyz[r.source][r.faces].shape, (len(faces), 3, 3))
+
+
+def test_smooth_borders_removes_teeth_and_terminates():
+    from texture.regions import smooth_borders
+
+    sheet = shapes.sheet(size=1.0, resolution=21)
+    v, f = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    adj = face_adjacency(v, f)
+    c = v[f].mean(1)
+    straight = np.where(c[:, 0] < 0, 0, 1)
+    row = np.floor((c[:, 1] + 0.5) / 0.05).astype(int)
+    teeth = straight.copy()
+    teeth[(c[:, 0] > 0) & (c[:, 0] < 0.05) & (row % 2 == 0)] = 0  # a face-wide tooth every other row
+
+    def border_edges(lab):
+        return int((lab[adj.a] != lab[adj.b]).sum())
+
+    assert border_edges(teeth) > border_edges(straight)
+    out, changed = smooth_borders(teeth, adj)
+    # all teeth but possibly one at the open border (a face there has two neighbours only)
+    assert changed > 0 and border_edges(out) <= border_edges(straight) + 2 < border_edges(teeth)
+    again, changed2 = smooth_borders(out, adj)
+    assert changed2 == 0 and (again == out).all()  # a fixed point: no face has two foreign neighbours
