@@ -3,16 +3,19 @@ VENV_BIN := .venv/bin
 DEMO_OUT ?= demo_run
 export PYOPENGL_PLATFORM ?= egl
 
-.PHONY: setup demo test bench bench-fit bench-atlas bench-render bench-train clean
+.PHONY: setup lint demo test bench bench-fit bench-atlas bench-render bench-train clean
 
 setup:
 	@bash scripts/setup.sh
 
 demo: setup
-	$(VENV_BIN)/mna demo -o $(DEMO_OUT)
+	$(VENV_BIN)/mna demo -o $(DEMO_OUT) --overwrite
 
-test: setup
+test: setup lint
 	$(VENV_BIN)/python -m pytest -q -ra tests
+
+lint: setup
+	$(VENV_BIN)/ruff check .
 
 # Benchmarks (long; results go to benchmarks/RESULTS.md). Not part of `make test`.
 bench: bench-fit bench-atlas bench-render bench-train

@@ -33,7 +33,7 @@ from render.backend import available_variants, import_mitsuba, use_variant  # no
 from render.meshes import UVMesh, vertex_normals, write_ply  # noqa: E402
 from render.mitsuba_scene import material_bitmap, scene_dict, to_mitsuba  # noqa: E402
 from render.pipeline import framing_for  # noqa: E402
-from render.textures import checker_image, squares_per_uv_unit  # noqa: E402
+from texture.textures import checker_image, squares_per_uv_unit  # noqa: E402
 from render.images import write_png  # noqa: E402
 from scenes.cameras import camera_rig  # noqa: E402
 from scenes.presets import load_preset  # noqa: E402

@@ -107,7 +107,7 @@ def write_section(text: str) -> None:
     path = REPO / "benchmarks" / "RESULTS.md"
     old = path.read_text() if path.is_file() else "# Benchmark results\n"
     lines = old.splitlines(keepends=True)
-    start = next((i for i, l in enumerate(lines) if l.strip() == SECTION), None)
+    start = next((i for i, line in enumerate(lines) if line.strip() == SECTION), None)
     if start is None:
         new = old.rstrip("\n") + "\n\n" + text
     else:

@@ -15,6 +15,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from mna.checkpoint import read_state
 from mna.encoders import build_encoder
 from mna.errors import MnaError
 from mna.model import BatchedLinear, NeuralAtlas
@@ -111,14 +112,14 @@ def load_checkpoint(path: str | Path, device: str | torch.device = "cpu") -> Loa
         path = path / "checkpoint.pt"
     if not path.is_file():
         raise MnaError(f"checkpoint not found: {path}")
-    try:
-        state = torch.load(path, map_location=device, weights_only=False)
-    except Exception as exc:
-        raise MnaError(f"cannot read checkpoint {path}: {type(exc).__name__}") from None
+    state = read_state(path, map_location=device)
     if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
         raise MnaError(f"{path} is not a training checkpoint of `mna train` (a per-shape fit's run? "
                        "use `mna extract` for those)")
-    cfg = from_dict(state["config"]).validate()
+    try:
+        cfg = from_dict(state["config"]).validate()
+    except KeyError:
+        raise MnaError(f"{path} has no 'config'") from None
     model = ConditionalAtlas.from_config(cfg).to(device)
     load_state(model, state["model"], path)
     return LoadedCheckpoint(model.eval(), cfg, state, path)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -111,23 +112,100 @@ class FitConfig:
     """UV grid resolution of the extracted chart meshes."""
 
     def validate(self) -> "FitConfig":
-        m = self.model
-        if m.charts < 1:
-            raise MnaError(f"--charts must be at least 1, got {m.charts}")
-        for name in ("uv_samples", "targets", "eval_points", "eval_uv_samples", "c_samples"):
-            if getattr(self, name) < 1:
-                raise MnaError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.steps < 1 and not self.time_budget:
-            raise MnaError(f"--steps must be at least 1, got {self.steps}")
-        if self.time_budget is not None and self.time_budget <= 0:
-            raise MnaError(f"--time-budget must be positive seconds, got {self.time_budget}")
-        if self.grid < 2:
-            raise MnaError(f"--grid must be at least 2, got {self.grid}")
-        if not 0 < self.eta <= 1:
-            raise MnaError(f"eta must be in (0, 1], got {self.eta}")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise MnaError(f"--device must be auto, cpu or cuda, got {self.device!r}")
+        """Check every value (type, finite, range); raises ``MnaError`` naming the option or key.
+
+        Called before anything is written, so a bad value leaves no run folder behind.
+        """
+        validate_model(self.model)
+        validate_loss(self.loss)
+        check_int(self.seed, "--seed", 0, MAX_SEED)
+        check_choice(self.device, "--device", DEVICES)
+        check_int(self.threads, "--threads", 0, MAX_THREADS)
+        if self.time_budget is None:
+            check_int(self.steps, "--steps", 1)
+        else:
+            tb = self.time_budget
+            if isinstance(tb, bool) or not isinstance(tb, (int, float)) or not 0 < tb <= MAX_TIME_BUDGET:
+                raise MnaError(f"--time-budget must be positive, finite seconds (at most {MAX_TIME_BUDGET:.1e}), "
+                               f"got {tb}")
+            check_int(self.steps, "steps", 0)
+        for name in ("uv_samples", "targets", "eval_points", "eval_uv_samples", "c_samples",
+                     "checkpoint_every", "log_every"):
+            check_int(getattr(self, name), name, 1)
+        check_int(self.dist_samples, "dist_samples", 0)
+        check_int(self.grid, "--grid", 2, MAX_GRID)
+        check_float(self.lr, "lr", 0, 1e3, low_open=True)
+        check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
+        check_float(self.lr_final, "lr_final", 0, 1)
+        check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)
+        check_float(self.eta, "eta", 0, 1, low_open=True)
+        if not isinstance(self.preset, str):
+            raise MnaError(f"preset must be a string, got {self.preset!r}")
         return self
+
+
+#: The charts' cost is linear in K per step (K MLPs, K x uv_samples points in the Chamfer
+#: search) and the paper uses 1-3 (25 for its ablations): 64 is far beyond any useful atlas,
+#: while 1,000 charts did not finish 20 steps in a minute and exhaust memory at extraction.
+MAX_CHARTS = 64
+#: numpy's and torch's generators take seeds in [0, 2**32) portably (numpy refuses negatives)
+MAX_SEED = 2**32 - 1
+MAX_THREADS = 1024
+#: K x G^2 grid points are evaluated and kept in memory at extraction (4096^2 = 16.8 M per chart)
+MAX_GRID = 4096
+#: 10 years: a larger finite budget is a typo, and inf/nan cannot drive the lr schedule
+MAX_TIME_BUDGET = 3.2e8
+#: positional-encoding octaves: 2^octaves multiplies coordinates in [-1, 1] (float32 keeps 24 bits)
+MAX_OCTAVES = 16
+DEVICES = ("auto", "cpu", "cuda")
+
+
+def check_int(value, name: str, low: int, high: int | None = None) -> int:
+    """``value`` is an int (not a bool) in ``[low, high]``; else ``MnaError`` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise MnaError(f"{name} must be an integer, got {value!r}")
+    if value < low or (high is not None and value > high):
+        bounds = f"at least {low}" if high is None else f"between {low} and {high}"
+        raise MnaError(f"{name} must be {bounds}, got {value}")
+    return value
+
+
+def check_float(value, name: str, low: float, high: float, low_open: bool = False,
+                high_open: bool = False) -> float:
+    """``value`` is a finite number in the interval (open ends where asked); else ``MnaError``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise MnaError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise MnaError(f"{name} must be a finite number, got {value}")
+    if v < low or v > high or (low_open and v == low) or (high_open and v == high):
+        interval = f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+        raise MnaError(f"{name} must be in {interval}, got {value}")
+    return v
+
+
+def check_choice(value, name: str, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise MnaError(f"{name} must be {', '.join(choices[:-1])} or {choices[-1]}, got {value!r}")
+    return value
+
+
+def validate_model(m: ModelConfig, where: str = "model.", charts_name: str = "--charts") -> None:
+    """Network sizes of a :class:`ModelConfig` (shared by fit and train configs)."""
+    check_int(m.charts, charts_name, 1, MAX_CHARTS)
+    for name in ("chart_width", "label_width", "label_depth"):
+        check_int(getattr(m, name), where + name, 1)
+    check_int(m.chart_depth, where + "chart_depth", 2)
+    check_int(m.chart_skip, where + "chart_skip", 1, m.chart_depth - 1)
+    check_int(m.octaves, where + "octaves", 0, MAX_OCTAVES)
+    check_int(m.latent, where + "latent", 0)
+
+
+def validate_loss(loss: LossConfig, where: str = "loss.") -> None:
+    """Loss weights are finite and >= 0; eps > 0."""
+    for name in ("w_rec", "w_occ", "w_dist", "w_orient"):
+        check_float(getattr(loss, name), where + name, 0, 1e12)
+    check_float(loss.eps, where + "eps", 0, 1, low_open=True)
 
 
 def paper() -> FitConfig:
@@ -234,6 +312,14 @@ def load_yaml(path: str | Path) -> dict:
         data = yaml.safe_load(path.read_text())
     except FileNotFoundError:
         raise MnaError(f"config file not found: {path}") from None
+    except IsADirectoryError:
+        raise MnaError(f"config file is a folder: {path}") from None
+    except UnicodeDecodeError:
+        raise MnaError(f"config file {path} is not a text (YAML) file") from None
     except yaml.YAMLError as exc:
         raise MnaError(f"config file {path} is not valid YAML: {str(exc).splitlines()[0]}") from None
-    return data or {}
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise MnaError(f"config file {path} must hold a mapping of keys (key: value), got a {type(data).__name__}")
+    return data

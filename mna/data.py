@@ -17,39 +17,99 @@ from mna.errors import InputError
 
 MESH_EXTS = {".obj", ".ply", ".off", ".stl", ".glb", ".gltf"}
 POINT_EXTS = {".xyz", ".npy", ".npz", ".txt"}
-#: below this extent (relative to nothing: absolute units) the geometry is treated as a point.
-MIN_EXTENT = 1e-12
+#: below this extent *relative to the coordinates' magnitude* the geometry is one point: its
+#: size is then lost in the float64 rounding of the positions themselves (eps 2.2e-16 with room
+#: to spare). Relative, so a shape at 1e-30 or at 1e200 units normalises like one at 1.
+REL_MIN_EXTENT = 1e-12
 MIN_POINTS = 16
 
 
-@dataclass
+#: the first bytes of binary or self-describing formats: a file renamed to the wrong
+#: extension (a text file called .ply) is named as such instead of failing deep in a parser
+MAGIC = {".ply": b"ply", ".glb": b"glTF", ".npy": b"\x93NUMPY", ".npz": b"PK"}
+
+
+def check_file_format(path: Path) -> None:
+    """Raise ``InputError`` when ``path``'s first bytes do not match its extension (see ``MAGIC``)."""
+    magic = MAGIC.get(path.suffix.lower())
+    if magic is None:
+        return
+    with open(path, "rb") as fh:
+        head = fh.read(len(magic))
+    if head != magic:
+        kind = path.suffix.lower().lstrip(".").upper()
+        raise InputError(f"cannot read {path.name}: not a {kind} file (it does not start with {magic!r}); "
+                         f"is the extension right?")
+
+
+def check_coordinates(points: np.ndarray, where: str) -> None:
+    """Raise ``InputError`` for NaN coordinates, or "coordinates overflow" for infinite ones."""
+    points = np.asarray(points)
+    if np.isnan(points).any():
+        n = int(np.isnan(points.reshape(len(points), -1)).any(1).sum())
+        raise InputError(f"{where} has NaN coordinates ({n} point(s))")
+    if not np.isfinite(points).all():
+        raise InputError(f"{where}: coordinates overflow (infinite values after reading)")
+
+
+def unit_ball(points: np.ndarray, where: str = "input") -> tuple[np.ndarray, float]:
+    """``(center, scale)`` of the unit-ball frame: bounding-box centre, max distance to it.
+
+    Overflow-safe for any finite float64 input: the centre is ``lo/2 + hi/2`` (``lo + hi`` can
+    overflow) and the radius is taken of ``d / max|d|`` (squaring 1e200 overflows, 1e-200
+    underflows). Example: the points ``(0,0,0)`` and ``(2,0,0)`` give ``((1,0,0), 1.0)``.
+
+    Raises ``InputError``: NaN coordinates; "coordinates overflow" for infinite ones (e.g.
+    ``1e400`` in a text file) or an extent beyond float64; "zero extent" when the extent is
+    below ``REL_MIN_EXTENT`` of the coordinates' magnitude (all points coincide).
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(points) == 0:
+        raise InputError(f"{where} has no points")
+    check_coordinates(points, where)
+    lo, hi = points.min(0), points.max(0)
+    center = lo / 2 + hi / 2
+    with np.errstate(over="ignore", invalid="ignore"):
+        d = points - center
+        big = float(np.abs(d).max())
+        scale = big * float(np.linalg.norm(d / big, axis=1).max()) if big > 0 else 0.0
+    if not np.isfinite(scale):
+        raise InputError(f"{where}: coordinates overflow (the shape's extent exceeds float64's range)")
+    magnitude = float(np.abs(points).max())
+    if scale == 0 or scale <= REL_MIN_EXTENT * magnitude:
+        raise InputError(f"{where} has zero extent (all points coincide)")
+    return center, scale
+
+
+@dataclass(frozen=True)
 class Normalization:
-    """``x_unit = (x_input - center) / scale``."""
+    """``x_unit = (x_input - center) / scale``: the unit-ball frame of DESIGN's metrics.
+
+    The one implementation: ``texture.uvmesh`` re-exports it.
+    """
 
     center: np.ndarray  # (3,)
     scale: float
 
     def apply(self, x: np.ndarray) -> np.ndarray:
-        return (x - self.center) / self.scale
+        return (np.asarray(x, np.float64) - self.center) / self.scale
 
     def invert(self, x: np.ndarray) -> np.ndarray:
-        return x * self.scale + self.center
+        return np.asarray(x, np.float64) * self.scale + self.center
 
     def to_dict(self) -> dict:
         return {"center": [float(c) for c in self.center], "scale": float(self.scale)}
+
+    to_json = to_dict
 
     @classmethod
     def from_dict(cls, d: dict) -> "Normalization":
         return cls(np.asarray(d["center"], dtype=np.float64), float(d["scale"]))
 
     @classmethod
-    def fit(cls, points: np.ndarray) -> "Normalization":
-        lo, hi = points.min(0), points.max(0)
-        center = (lo + hi) / 2
-        scale = float(np.linalg.norm(points - center, axis=1).max())
-        if not np.isfinite(scale) or scale < MIN_EXTENT:
-            raise InputError("input has zero extent (all points coincide)")
-        return cls(center, scale)
+    def fit(cls, points: np.ndarray, where: str = "input") -> "Normalization":
+        """The unit-ball frame of ``points`` (see :func:`unit_ball` for what is refused)."""
+        return cls(*unit_ball(points, where))
 
 
 @dataclass
@@ -103,6 +163,7 @@ def load_surface(path: str | Path) -> Surface:
         )
     if path.stat().st_size == 0:
         raise InputError(f"input file is empty: {path}")
+    check_file_format(path)
     if ext in POINT_EXTS:
         points, faces = _read_points(path), None
     else:
@@ -115,11 +176,9 @@ def make_surface(points: np.ndarray, faces: np.ndarray | None, path: str = "<mem
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise InputError(f"expected points of shape (P, 3), got {points.shape} in {path}")
-    if not np.isfinite(points).all():
-        raise InputError(f"input has NaN or infinite coordinates: {path}")
     if len(points) < MIN_POINTS:
         raise InputError(f"input has {len(points)} points; at least {MIN_POINTS} are needed: {path}")
-    norm = Normalization.fit(points)
+    norm = Normalization.fit(points, f"input {path}")
     unit = norm.apply(points)
     mesh = None
     if faces is not None:

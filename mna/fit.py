@@ -16,7 +16,8 @@ import torch
 from mna.config import FitConfig
 from mna.data import Surface
 from mna.inference import uniform_uv
-from mna.interrupt import graceful_sigint
+from mna.errors import MnaError
+from mna.interrupt import graceful_stop
 from mna.model import NeuralAtlas, flush_denormals
 from mna.objective import atlas_losses
 
@@ -26,7 +27,7 @@ def resolve_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError("--device cuda was asked for, but no CUDA device is available")
+        raise MnaError("--device cuda was asked for, but no CUDA device is available")
     return torch.device(name)
 
 
@@ -60,6 +61,8 @@ class Fitter:
         self.rng = np.random.default_rng(cfg.seed)
         self.step = 0
         self.elapsed = 0.0
+        self.stop_signal: int | None = None
+        """the signal (SIGINT, SIGTERM) that stopped the last :meth:`run`, if one did."""
 
     # -- one optimisation step -------------------------------------------------------------
     def progress(self) -> float:
@@ -109,11 +112,11 @@ class Fitter:
     # -- the loop --------------------------------------------------------------------------
     def run(self, on_checkpoint: Callable[["Fitter"], None], callback: Callable[[int], bool] | None = None,
             progress_bar: bool = True) -> bool:
-        """Optimise until done; returns True if interrupted (Ctrl-C or ``callback`` returning True).
+        """Optimise until done; returns True if interrupted (Ctrl-C, SIGTERM or ``callback`` returning True).
 
-        ``on_checkpoint(self)`` is called every ``checkpoint_every`` steps and on exit. Ctrl-C
-        asks the loop to stop after the current step, so the saved state is always whole;
-        a second Ctrl-C aborts at once.
+        ``on_checkpoint(self)`` is called every ``checkpoint_every`` steps and on exit. Ctrl-C or
+        SIGTERM asks the loop to stop after the current step (``stop_signal`` says which), so the
+        saved state is always whole; a second signal aborts at once.
         """
         from tqdm.auto import tqdm
 
@@ -123,7 +126,8 @@ class Fitter:
                    unit="s" if budget else "step", disable=not progress_bar, dynamic_ncols=True,
                    desc=f"fit K={cfg.model.charts}", leave=True)
         interrupted = False
-        with graceful_sigint() as stop, bar:
+        self.stop_signal = None
+        with graceful_stop() as stop, bar:
             while not self.done():
                 t0 = time.perf_counter()
                 with flush_denormals():
@@ -131,7 +135,7 @@ class Fitter:
                 dt = time.perf_counter() - t0
                 self.elapsed += dt
                 if not math.isfinite(losses_.total):
-                    raise RuntimeError(f"loss became {losses_.total} at step {self.step}; lower --lr or check the input")
+                    raise MnaError(f"loss became {losses_.total} at step {self.step}; lower lr or check the input")
                 if budget:
                     bar.n = min(round(self.elapsed), bar.total)
                     if self.step % cfg.log_every == 0:
@@ -144,7 +148,7 @@ class Fitter:
                 if self.step % cfg.checkpoint_every == 0:
                     on_checkpoint(self)
                 if stop.requested or (callback is not None and callback(self.step)):
-                    interrupted = True
+                    interrupted, self.stop_signal = True, stop.signum
                     break
         on_checkpoint(self)
         return interrupted

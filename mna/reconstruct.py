@@ -135,12 +135,13 @@ def _encoder_input(cfg: TrainConfig, input_path: Path, surface, seed: int) -> to
 
 def reconstruct_run(checkpoint: str | Path, input_path: str | Path, out: str | Path, reference: str | None = None,
                     device: str = "auto", points: int | None = None, grid: int | None = None,
-                    log=print) -> dict:
+                    log=print, overwrite: bool = False) -> dict:
     """Feed-forward reconstruction of ``input_path`` into the run folder ``out``; returns metrics.
 
     Point-cloud models take a mesh or point cloud (its own surface is the metrics' reference
     and its frame the output frame); image models take an image and need ``reference`` (the
-    object's mesh or point cloud) for the frame and the metrics.
+    object's mesh or point cloud) for the frame and the metrics. ``out`` must be missing or
+    empty unless ``overwrite`` (see :func:`mna.runfolder.prepare_run_folder`).
     """
     dev = resolve_device(device)
     ck: LoadedCheckpoint = load_checkpoint(checkpoint, dev)
@@ -157,7 +158,7 @@ def reconstruct_run(checkpoint: str | Path, input_path: str | Path, out: str | P
         raise MnaError("this checkpoint encodes images: give --reference MESH_OR_CLOUD (frame and metrics)")
     surface = load_surface(reference or input_path)
     inputs = _encoder_input(cfg, input_path, surface, cfg.seed)
-    out = prepare_output(out, resume=False)
+    out = prepare_output(out, resume=False, overwrite=overwrite, keep=[input_path, *([reference] if reference else [])])
     fit_cfg = cfg.fit_config(latent=0)  # the baked atlas is a plain per-shape one
     fit_cfg.preset = "reconstruct"
     t0 = time.perf_counter()
@@ -180,13 +181,12 @@ def reconstruct_run(checkpoint: str | Path, input_path: str | Path, out: str | P
 
 
 def _add_provenance(path: Path, ck: LoadedCheckpoint, z: torch.Tensor, input_path: Path) -> None:
-    from mna.atomic import atomic_path
+    from mna.checkpoint import read_state, write_state
 
-    state = torch.load(path, map_location="cpu", weights_only=False)
+    state = read_state(path)
     state["reconstructed_from"] = {"checkpoint": str(ck.path), "input": str(input_path),
                                    "latent": z.detach().cpu()[0], "train_config": ck.state["config"]}
-    with atomic_path(path) as tmp:
-        torch.save(state, tmp)
+    write_state(path, state)
 
 
 # -- mna evaluate -------------------------------------------------------------------------------

@@ -20,6 +20,7 @@ import trimesh
 
 from mna import config as config_mod
 from mna.atomic import atomic_path, write_json
+from mna.checkpoint import read_state, write_state
 from mna.config import FitConfig
 from mna.data import Normalization, Surface, load_surface
 from mna.errors import MnaError
@@ -27,6 +28,7 @@ from mna.fit import Fitter, resolve_device
 from mna.inference import estimate_c, extract_grid, rejection_sample
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas, flush_denormals
+from mna.runfolder import prepare_run_folder
 
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint.pt"
@@ -36,23 +38,24 @@ CHARTS = "charts.npz"
 CHARTS_PLY = "charts.ply"
 
 
-def prepare_output(out: str | Path, resume: bool) -> Path:
-    """Create (or check) the run folder; refuse to silently mix two different runs."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise MnaError(f"output path exists and is not a folder: {out}")
-    if resume:
-        if not (out / CHECKPOINT).is_file():
-            raise MnaError(f"--resume: no {CHECKPOINT} in {out}")
-        return out
+def prepare_output(out: str | Path, resume: bool, overwrite: bool = False, keep=()) -> Path:
+    """The run folder of a fit: see :func:`mna.runfolder.prepare_run_folder`."""
+    return prepare_run_folder(out, resume=resume, overwrite=overwrite, keep=keep, resume_file=CHECKPOINT)
+
+
+def read_metrics(run: str | Path) -> dict:
+    """``RUN/metrics.json`` as a dict ({} when absent); a damaged file is named in the error."""
+    path = Path(run) / METRICS
+    if not path.is_file():
+        return {}
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".mna-write-test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as exc:
-        raise MnaError(f"output folder {out} is not writable: {exc.strerror or exc}") from None
-    return out
+        data = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise MnaError(f"{path} is not valid JSON ({str(exc).splitlines()[0]}); delete it to start its "
+                       f"metrics afresh") from None
+    if not isinstance(data, dict):
+        raise MnaError(f"{path} must hold a JSON object, got {type(data).__name__}; delete it to start afresh")
+    return data
 
 
 def run_config_dict(cfg: FitConfig, input_path: str) -> dict:
@@ -73,8 +76,7 @@ def save_checkpoint(run: Path, fitter: Fitter, normalization: Normalization) -> 
     state = fitter.state_dict()
     state["normalization"] = normalization.to_dict()
     state["config"] = config_mod.to_dict(fitter.cfg)
-    with atomic_path(run / CHECKPOINT) as tmp:
-        torch.save(state, tmp)
+    write_state(run / CHECKPOINT, state)
 
 
 @dataclass
@@ -84,18 +86,27 @@ class FitRunResult:
     steps: int
     seconds: float
     metrics: dict | None
+    stop_signal: int | None = None
+    """SIGINT or SIGTERM when a signal interrupted the fit (the checkpoint is saved)."""
 
 
 def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: bool = False,
             callback: Callable[[int], bool] | None = None, progress_bar: bool = True,
-            extract: bool = True, log: Callable[[str], None] = print) -> FitRunResult:
-    """Fit ``input_path`` into the run folder ``out`` (resuming from its checkpoint if asked)."""
+            extract: bool = True, log: Callable[[str], None] = print, overwrite: bool = False) -> FitRunResult:
+    """Fit ``input_path`` into the run folder ``out`` (resuming from its checkpoint if asked).
+
+    ``out`` must be missing or empty unless ``resume`` (continue it) or ``overwrite`` (replace
+    the run that is there); see :func:`mna.runfolder.prepare_run_folder`.
+    """
     cfg.validate()
-    surface = load_surface(input_path)  # validate the input before touching the output
-    out = prepare_output(out, resume)
+    # everything is validated before the output folder is touched
+    surface = load_surface(input_path)
+    device = resolve_device(cfg.device)
+    if resume:
+        read_metrics(out)  # a damaged metrics.json fails now, not after the fit
+    out = prepare_output(out, resume, overwrite, keep=[input_path])
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
-    device = resolve_device(cfg.device)
     # Flush-to-zero is per thread and inherited by threads created under it: switching it on
     # before the model exists lets torch's worker pool start with it too (2x faster fits here).
     # Extraction runs outside: its scipy work (Chamfer) stays in the CPU's normal mode.
@@ -114,10 +125,10 @@ def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input
     """Resume if asked, optimise, then set c; returns the result (no metrics yet) and the fit time."""
     device = fitter.device
     if resume:
-        state = torch.load(out / CHECKPOINT, map_location=device, weights_only=False)
+        state = read_state(out / CHECKPOINT, map_location=device)
         try:
             fitter.load_state_dict(state)
-        except (RuntimeError, KeyError) as exc:
+        except (RuntimeError, KeyError, TypeError, ValueError) as exc:
             raise MnaError(f"checkpoint in {out} does not match this configuration: {str(exc).splitlines()[0]}") from None
         log(f"resuming from step {fitter.step} ({fitter.elapsed:.1f} s done)")
     config_mod.save_yaml(out / CONFIG, run_config_dict(cfg, str(input_path)))
@@ -128,7 +139,7 @@ def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input
     fit_seconds = time.perf_counter() - t0
     if interrupted:
         log(f"interrupted at step {fitter.step}; checkpoint saved to {out / CHECKPOINT} (continue with --resume)")
-        return FitRunResult(out, True, fitter.step, fitter.elapsed, None), fit_seconds
+        return FitRunResult(out, True, fitter.step, fitter.elapsed, None, fitter.stop_signal), fit_seconds
     # c is part of the model from here on (a buffer saved with the checkpoint)
     gen = torch.Generator().manual_seed(cfg.seed + 1)
     fitter.model.c.fill_(float(estimate_c(fitter.model, gen, cfg.c_samples, cfg.eta,
@@ -143,10 +154,14 @@ def load_model(run: str | Path, device: str = "cpu") -> tuple[NeuralAtlas, FitCo
     if not (run / CHECKPOINT).is_file():
         raise MnaError(f"no {CHECKPOINT} in {run}: run `mna fit` first")
     cfg, _ = load_run_config(run)
-    state = torch.load(run / CHECKPOINT, map_location=device, weights_only=False)
+    state = read_state(run / CHECKPOINT, map_location=device)
     model = NeuralAtlas.from_config(cfg.model, cfg.ablation).to(device)
-    model.load_state_dict(state["model"])
-    return model.eval(), cfg, Normalization.from_dict(state["normalization"]), state
+    try:
+        model.load_state_dict(state["model"])
+        norm = Normalization.from_dict(state["normalization"])
+    except (RuntimeError, KeyError, TypeError, ValueError) as exc:
+        raise MnaError(f"{run / CHECKPOINT} does not match {run / CONFIG}: {str(exc).strip().splitlines()[0]}") from None
+    return model.eval(), cfg, norm, state
 
 
 def extract_run(run: str | Path, points: int | None = None, grid: int | None = None, timings: dict | None = None,
@@ -154,14 +169,19 @@ def extract_run(run: str | Path, points: int | None = None, grid: int | None = N
                 device: str = "cpu") -> dict:
     """Write points.ply, charts.npz, charts.ply and metrics.json for a fitted run."""
     run = Path(run)
+    if points is not None and points < 1:
+        raise MnaError(f"--points must be positive, got {points}")
+    if grid is not None and grid < 2:
+        raise MnaError(f"--grid must be at least 2, got {grid}")
+    old = read_metrics(run)  # before any work: a damaged file is reported, not overwritten late
     if model is None or cfg is None:
         model, cfg, _, _ = load_model(run, device)
     if surface is None:
         _, input_path = load_run_config(run)
         surface = load_surface(input_path)
     norm = surface.normalization
-    n_points = points or cfg.eval_points
-    resolution = grid or cfg.grid
+    n_points = cfg.eval_points if points is None else points
+    resolution = cfg.grid if grid is None else grid
     if n_points < 1:
         raise MnaError(f"--points must be positive, got {n_points}")
     if resolution < 2:
@@ -185,7 +205,7 @@ def extract_run(run: str | Path, points: int | None = None, grid: int | None = N
     dist = atlas_distortion(model, cfg.eval_uv_samples, torch.Generator().manual_seed(cfg.seed + 5), cfg.tau, cfg.loss.eps)
     timings["metrics"] = time.perf_counter() - t0
 
-    _write_points(run / POINTS, norm.invert(sample.points))
+    _write_points(run / POINTS, norm.invert(sample.points), _coordinate_dtype(norm))
     _write_charts(run, chart_grid, norm, cfg.tau)
     metrics = {
         "chamfer_pcl": pcl.chamfer, "fscore_pcl": pcl.fscore,
@@ -200,31 +220,56 @@ def extract_run(run: str | Path, points: int | None = None, grid: int | None = N
         "device": str(next(model.parameters()).device), "torch": torch.__version__,
         "machine": f"{platform.machine()} {os.cpu_count()} cpu",
     }
-    old = {}
-    if (run / METRICS).is_file():
-        old = json.loads((run / METRICS).read_text())
     metrics["timings"] = {**old.get("timings", {}), **timings}
     write_json(run / METRICS, metrics)
     return metrics
 
 
-def _write_points(path: Path, points: np.ndarray) -> None:
+def _write_points(path: Path, points: np.ndarray, dtype: type = np.float32) -> None:
+    _write_ply(path, points, None, dtype)
+
+
+def _write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray | None, dtype: type) -> None:
+    """trimesh's PLY (always float32) unless ``dtype`` is float64: then a binary PLY of doubles,
+    which trimesh, Open3D and Blender read too."""
+    if dtype == np.float32:
+        obj = trimesh.PointCloud(vertices) if faces is None else trimesh.Trimesh(vertices, faces, process=False)
+        with atomic_path(path) as tmp:
+            obj.export(tmp)
+        return
+    v = np.ascontiguousarray(vertices, dtype="<f8")
+    header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(v)}",
+              "property double x", "property double y", "property double z"]
+    body = v.tobytes()
+    if faces is not None:
+        f = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+        f["n"], f["i"] = 3, np.asarray(faces)
+        header += [f"element face {len(f)}", "property list uchar int vertex_indices"]
+        body += f.tobytes()
     with atomic_path(path) as tmp:
-        trimesh.PointCloud(points).export(tmp)
+        tmp.write_bytes(("\n".join(header + ["end_header", ""])).encode() + body)
+
+
+def _coordinate_dtype(norm: Normalization) -> type:
+    """float32 for input-frame coordinates unless the input's scale is outside what float32
+    keeps to full precision (normal numbers 1.2e-38 .. 3.4e38): a 1e-40 or 1e200 shape is
+    written as float64 instead of subnormals or inf."""
+    extent = float(np.abs(norm.center).max()) + norm.scale
+    return np.float32 if 1e-30 <= norm.scale and extent <= 1e37 else np.float64
 
 
 def _write_charts(run: Path, g, norm: Normalization, tau: float) -> None:
     K, G = g.xyz.shape[:2]
     xyz_in = norm.invert(g.xyz.reshape(-1, 3)).reshape(K, G, G, 3)
     verts_in = norm.invert(g.vertices)
+    dt = _coordinate_dtype(norm)
     with atomic_path(run / CHARTS) as tmp:
         with open(tmp, "wb") as fh:
             np.savez_compressed(
-                fh, uv=g.uv.astype(np.float32), xyz=xyz_in.astype(np.float32), occ=g.occ.astype(np.float32),
+                fh, uv=g.uv.astype(np.float32), xyz=xyz_in.astype(dt), occ=g.occ.astype(np.float32),
                 tau=np.float64(tau), center=norm.center.astype(np.float64), scale=np.float64(norm.scale),
-                vertices=verts_in.astype(np.float32), faces=g.faces.astype(np.int64),
+                vertices=verts_in.astype(dt), faces=g.faces.astype(np.int64),
                 vertex_uv=g.vertex_uv.astype(np.float32), vertex_chart=g.vertex_chart.astype(np.int64),
                 face_chart=g.face_chart.astype(np.int64), grid_index=g.grid_index.astype(np.int64),
             )
-    with atomic_path(run / CHARTS_PLY) as tmp:
-        trimesh.Trimesh(verts_in, g.faces, process=False).export(tmp)
+    _write_ply(run / CHARTS_PLY, verts_in, g.faces, dt)

@@ -18,6 +18,7 @@ import argparse
 import math
 import os
 import platform
+import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -29,12 +30,13 @@ from torch import nn
 from torch.utils.data import DataLoader
 
 from mna import datasets, train_config
-from mna.atomic import atomic_path, write_json, write_text
+from mna.atomic import clean_stale_temporaries, write_json, write_text
+from mna.checkpoint import read_state, write_state
 from mna.conditional import CHECKPOINT_FORMAT, ConditionalAtlas, load_state
 from mna.config import save_yaml
 from mna.distributed import Distributed, ResumableSampler, rank_param_divergence, setup_distributed
 from mna.errors import MnaError
-from mna.interrupt import graceful_sigint
+from mna.interrupt import exit_code, graceful_stop
 from mna.model import flush_denormals
 from mna.objective import LossTerms, atlas_losses
 from mna.train_config import TrainConfig
@@ -68,6 +70,8 @@ class TrainResult:
     seconds: float
     metrics: dict | None
     model: ConditionalAtlas
+    stop_signal: int | None = None
+    """SIGINT or SIGTERM when a signal interrupted training (the checkpoint is saved)."""
 
 
 class Trainer:
@@ -94,6 +98,7 @@ class Trainer:
         self.sampler = ResumableSampler(self.train_set, num_replicas=ctx.world, rank=ctx.rank, shuffle=True,
                                         seed=cfg.seed)
         self.epoch, self.batch_in_epoch, self.step, self.elapsed = 0, 0, 0, 0.0
+        self.stop_signal: int | None = None
         self.log_rows: list[dict] = []
 
     # -- state -----------------------------------------------------------------------------
@@ -154,7 +159,7 @@ class Trainer:
                 print(f"mna train: {self.amp_skips} mixed-precision steps in a row overflowed; "
                       "continuing in float32", file=sys.stderr)
         elif not bool(torch.isfinite(stats).all()):
-            raise RuntimeError(f"loss became {float(stats[0])} at step {self.step + 1}; lower lr or check the data")
+            raise MnaError(f"loss became {float(stats[0])} at step {self.step + 1}; lower lr or check the data")
         self.step += 1
         return stats.cpu()
 
@@ -206,8 +211,7 @@ class Logger:
 
 def _save(trainer: Trainer, out: Path, logger: Logger) -> None:
     if trainer.ctx.main:
-        with atomic_path(out / CHECKPOINT) as tmp:
-            torch.save(trainer.state_dict(), tmp)
+        write_state(out / CHECKPOINT, trainer.state_dict())
         logger.flush()
 
 
@@ -219,6 +223,7 @@ def prepare_out(cfg: TrainConfig, resume: bool) -> Path:
         raise MnaError(f"--resume: no {CHECKPOINT} in {out}")
     if not resume and (out / CHECKPOINT).is_file():
         raise MnaError(f"{out} already holds a training run; use --resume or another out folder")
+    clean_stale_temporaries(out, legacy=(CHECKPOINT, CONFIG, LOG_CSV, "metrics.json"))
     return out
 
 
@@ -236,7 +241,7 @@ def train(cfg: TrainConfig, resume: bool = False, progress: bool = True, stop_at
     trainer = Trainer(cfg, ctx)
     val_set = datasets.build(cfg, cfg.data.val_split) if cfg.val_every else None
     if resume:
-        state = torch.load(out / CHECKPOINT, map_location=ctx.device, weights_only=False)
+        state = read_state(out / CHECKPOINT, map_location=ctx.device)
         trainer.load_state_dict(state, out / CHECKPOINT)
         if ctx.main:
             log(f"resuming at epoch {trainer.epoch + 1}, batch {trainer.batch_in_epoch}, step {trainer.step}")
@@ -252,15 +257,16 @@ def train(cfg: TrainConfig, resume: bool = False, progress: bool = True, stop_at
     metrics = None
     if not interrupted:
         metrics = _finish(trainer, out, val_set)
-    return TrainResult(out, interrupted, trainer.epoch, trainer.step, trainer.elapsed, metrics, trainer.model)
+    return TrainResult(out, interrupted, trainer.epoch, trainer.step, trainer.elapsed, metrics, trainer.model,
+                       trainer.stop_signal)
 
 
 def _loop(trainer: Trainer, out: Path, logger: Logger, val_set, progress: bool, stop_at_step: int | None) -> bool:
     from tqdm.auto import tqdm
 
     cfg, ctx = trainer.cfg, trainer.ctx
-    # Ctrl-C: finish the step, checkpoint, stop (torchrun handles its own signals)
-    with graceful_sigint(enabled=not ctx.active) as stop:
+    # Ctrl-C or SIGTERM: finish the step, checkpoint, stop (torchrun handles its own signals)
+    with graceful_stop(enabled=not ctx.active) as stop:
         while trainer.epoch < cfg.epochs:
             bar = tqdm(total=trainer.batches_per_epoch(), initial=trainer.batch_in_epoch, unit="batch",
                        desc=f"epoch {trainer.epoch + 1}/{cfg.epochs}", disable=not (progress and ctx.main),
@@ -285,6 +291,7 @@ def _loop(trainer: Trainer, out: Path, logger: Logger, val_set, progress: bool, 
                 if cfg.checkpoint_every and trainer.step % cfg.checkpoint_every == 0:
                     _save(trainer, out, logger)
                 if stop.requested or (stop_at_step is not None and trainer.step >= stop_at_step):
+                    trainer.stop_signal = stop.signum
                     bar.close()
                     _save(trainer, out, logger)
                     return True
@@ -377,7 +384,7 @@ def run(args: argparse.Namespace) -> int:
     result = train(cfg, resume=args.resume, progress=not args.no_progress)
     if result.interrupted:
         print(f"interrupted at step {result.step}; continue with --resume", file=sys.stderr)
-        return 130
+        return exit_code(result.stop_signal or signal.SIGINT)
     if int(os.environ.get("RANK", "0")) == 0:
         m = result.metrics
         val = f", val chamfer_pcl {m['val_chamfer_pcl']:.3e}" if "val_chamfer_pcl" in m else ""
@@ -387,15 +394,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from mna.cli import run_command
+
     args = parser().parse_args(argv)
     try:
-        return run(args)
-    except (ValueError, TypeError, OSError, RuntimeError) as exc:
-        if os.environ.get("MNA_DEBUG"):
-            raise
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"mna train: error: {msg}", file=sys.stderr)
-        return 2
+        return run_command("mna train", run, args)
     finally:
         if dist.is_initialized():
             dist.destroy_process_group()

@@ -148,10 +148,10 @@ class TrainConfig:
             raise MnaError(f"data.input image needs data.layout shapenet (rendered views), got {d.layout}")
         if not d.root:
             raise MnaError("data.root is empty: set it to the dataset folder")
+        fit_config_mod.validate_model(m, charts_name="model.charts")
+        fit_config_mod.validate_loss(self.loss)
         if m.latent < 1:
             raise MnaError(f"model.latent must be at least 1 for the conditional atlas, got {m.latent}")
-        if m.charts < 1:
-            raise MnaError(f"model.charts must be at least 1, got {m.charts}")
         if self.uv_samples < m.charts:
             raise MnaError(f"uv_samples ({self.uv_samples}) must be at least model.charts ({m.charts})")
         for name in ("batch_size", "epochs", "log_every", "val_points", "c_samples", "eval_points",
@@ -166,8 +166,10 @@ class TrainConfig:
                 raise MnaError(f"{name} must be >= 0, got {getattr(self, name)}")
         if d.workers < 0 or d.mesh_cache_points < 0:
             raise MnaError("data.workers and data.mesh_cache_points must be >= 0")
-        if not self.lr > 0:
-            raise MnaError(f"lr must be positive, got {self.lr}")
+        fit_config_mod.check_float(self.lr, "lr", 0, 1e3, low_open=True)
+        fit_config_mod.check_float(self.lr_gamma, "lr_gamma", 0, 1e3)
+        fit_config_mod.check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)
+        fit_config_mod.check_int(self.seed, "seed", 0, fit_config_mod.MAX_SEED)
         if self.grid < 2:
             raise MnaError(f"grid must be at least 2, got {self.grid}")
         if not 0 < self.eta <= 1:

@@ -23,7 +23,7 @@ from mna.atomic import atomic_path
 from render.images import read_image
 
 #: caption fields: (compare.json key, label, format)
-CAPTION_FIELDS = (("charts", "charts", "{:.0f}"), ("seam_length", "seam", "{:.2f}"),
+CAPTION_FIELDS = (("charts", "islands", "{:.0f}"), ("seam_length", "seam", "{:.2f}"),
                   ("distortion_metric", "dist.", "{:.3f}"))
 VIEW_PREFERENCE = ("three_quarter", "front", "side", "top")
 
@@ -166,6 +166,8 @@ def make_figure(run_dirs: list[str | Path], out: str | Path, rows: tuple[str, ..
                            location="bottom", shrink=0.5, aspect=40, extend="max")
         bar.set_label(f"{image[5:]} distortion per face (scale shared by all rows)", fontsize=7)
         bar.ax.tick_params(labelsize=6)
+    if image == "heat_charts":  # categorical colours: say so, there is no scale to show
+        fig.supxlabel("one colour per UV island (categorical, not a scale)", fontsize=7)
     with atomic_path(out) as tmp:
         fig.savefig(tmp, dpi=dpi, bbox_inches="tight", pad_inches=0.05)
     pdf_path = None

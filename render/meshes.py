@@ -45,18 +45,25 @@ def load_uv_mesh(path: str | Path) -> UVMesh:
     """Load a triangle mesh with (optional) per-vertex UVs and its texture file, if named."""
     import trimesh
 
+    from mna.data import check_coordinates, check_file_format
+
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"mesh not found: {path}")
+    check_file_format(path)
     try:
         mesh = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise ValueError(f"cannot read mesh {path}: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"mesh {path} has no triangles")
+    check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)
     uv = getattr(mesh.visual, "uv", None)
     if uv is not None and len(uv) != len(mesh.vertices):
         uv = None
+    if uv is not None and not np.isfinite(uv[np.unique(mesh.faces)]).all():
+        bad = int((~np.isfinite(np.asarray(uv))).any(1).sum())
+        raise ValueError(f"{path.name}: UVs contain NaN or inf ({bad} vertices)")
     texture = _mtl_texture(path) if path.suffix.lower() == ".obj" else None
     return UVMesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64),
                   None if uv is None else np.asarray(uv, np.float64), texture, path.stem)

@@ -33,7 +33,7 @@ from render.images import read_image, to_display, write_exr, write_png
 from render.meshes import UVMesh, load_uv_mesh, unshare, vertex_normals, write_ply
 from render.mitsuba_scene import (material_bitmap, material_plain, material_procedural_checker,
                                   material_vertex_colors, render_dict, scene_dict, scene_xml)
-from render.textures import checker_image, squares_per_uv_unit, uv_grid_image
+from texture.textures import checker_image, squares_per_uv_unit, uv_grid_image
 from scenes.cameras import BoundingSphere, Camera, bounding_sphere, camera_rig, world_frame
 from scenes.presets import Preset, load_preset, preset_to_dict
 

@@ -43,15 +43,17 @@ def _table_md(header: list[str], rows: list[list]) -> str:
 
 
 def compare_table(run_dir: Path) -> str | None:
-    """Markdown comparison table: ``compare.md`` verbatim, else ``compare.json`` as methods x numbers."""
-    md, js = run_dir / "compare.md", run_dir / "compare.json"
-    if md.is_file():
-        return md.read_text().strip()
+    """Markdown comparison table from ``compare.json`` (``mna compare``'s rows), with its legend."""
+    js = run_dir / "compare.json"
     if not js.is_file():
         return None
     from render.figure import _method_numbers
 
     data = json.loads(js.read_text())
+    if isinstance(data, dict) and isinstance(data.get("methods"), list) and data["methods"]:
+        from texture.compare import LEGEND, table
+
+        return table(data["methods"]) + "\n\n" + LEGEND
     methods = [m for m in ("mna", "ours", "xatlas") if _method_numbers(data, m)]
     if not methods and isinstance(data, dict):
         methods = [k for k, v in data.items() if isinstance(v, dict)]
@@ -72,6 +74,25 @@ def _metrics_table(run_dir: Path) -> str | None:
     return _table_md(["metric", "value"], rows) if rows else None
 
 
+def atlas_summary(run_dir: Path) -> tuple[int | None, int | None]:
+    """(charts of the fit, islands of the exported atlas) from ``RUN/atlas.json``, None if absent."""
+    path = run_dir / "atlas.json"
+    if not path.is_file():
+        return None, None
+    a = json.loads(path.read_text()).get("atlas", {})
+    return a.get("charts"), a.get("islands")
+
+
+FIT_NOTE = ("The neural atlas itself, before export: its charts are continuous maps, measured on samples "
+            "(chamfer and F-score against the input, F-score at 1 % of the diameter, in percent), and its "
+            "distortions are those of the charts' own parameterisation. The exported UV atlas's distortions "
+            "are the ones in the comparison above (after trimming, relaxation and packing).")
+FIGURE_NOTE = ("Rows: our atlas (mna) and xatlas on the same mesh; columns: views. Textured renders show a "
+               "checkerboard whose squares have the same size on the surface for both methods, so distortion "
+               "shows as squares changing size or shape. In the island image every UV island has its own "
+               "colour (categorical, not a scale); in the distortion images the colour bar gives the scale.")
+
+
 def _render_note(run_dir: Path) -> str | None:
     path = run_dir / "renders" / "render.json"
     if not path.is_file():
@@ -88,15 +109,17 @@ def _markdown(run_dir: Path, title: str, figures: list[Path]) -> str:
     parts = [f"# {title}", ""]
     for fig in figures:
         parts += [f"![{fig.stem}]({fig.relative_to(run_dir).as_posix()})", ""]
+    if figures:
+        parts += [FIGURE_NOTE, ""]
     note = _render_note(run_dir)
     if note:
         parts += [note, ""]
     table = compare_table(run_dir)
     if table:
-        parts += ["## Comparison (one UV-metrics harness for both)", "", table, ""]
+        parts += ["## UV atlas: ours vs xatlas, measured the same way", "", table, ""]
     metrics = _metrics_table(run_dir)
     if metrics:
-        parts += ["## Fit metrics", "", metrics, ""]
+        parts += ["## Neural atlas fit (before export)", "", FIT_NOTE, "", metrics, ""]
     glbs = [(label, rel) for label, rel in GLB_FILES if (run_dir / rel).is_file()]
     if glbs:
         parts += ["## Textured meshes", ""]
@@ -105,10 +128,22 @@ def _markdown(run_dir: Path, title: str, figures: list[Path]) -> str:
     return "\n".join(parts)
 
 
+#: link targets the report may make live: relative paths (no scheme), http(s) and file URLs
+_SAFE_HREF = re.compile(r"(https?://|file:|(?![a-zA-Z][a-zA-Z0-9+.-]*:))[^\s<>\"']*")
+
+
+def _link(m: re.Match) -> str:
+    label, href = m.group(1), m.group(2)
+    if _SAFE_HREF.fullmatch(html.unescape(href)):
+        return f'<a href="{href}">{label}</a>'
+    return m.group(0)  # any other scheme (javascript:, data:, ...) stays text
+
+
 def _inline(text: str) -> str:
+    """Escaped text with `code` and [label](href) links; only safe hrefs become links."""
     text = html.escape(text)
     text = re.sub(r"`([^`]+)`", r"<code>\1</code>", text)
-    return re.sub(r"\[([^\]]+)\]\(([^)]+)\)", r'<a href="\2">\1</a>', text)
+    return re.sub(r"\[([^\]]+)\]\(([^)]+)\)", _link, text)
 
 
 def markdown_to_html(md: str, run_dir: Path) -> str:
@@ -133,7 +168,8 @@ def markdown_to_html(md: str, run_dir: Path) -> str:
             i -= 1
             head = "".join(f"<th>{_inline(c)}</th>" for c in rows[0])
             body = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in r) + "</tr>" for r in rows[1:])
-            out.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+            # the wrapper scrolls a wide table sideways instead of widening the page
+            out.append(f'<div class="table"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>')
         elif line.startswith("- "):
             items = []
             while i < len(lines) and lines[i].startswith("- "):
@@ -147,9 +183,10 @@ def markdown_to_html(md: str, run_dir: Path) -> str:
     return "\n".join(out)
 
 
-_CSS = ("body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
-        "img{max-width:100%}table{border-collapse:collapse;margin:1em 0}"
-        "td,th{border:1px solid #ccc;padding:.3em .7em;text-align:right}th{background:#f3f3f3}"
+_CSS = ("body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}"
+        "img{max-width:100%}div.table{overflow-x:auto;max-width:100%}"
+        "table{border-collapse:collapse;margin:1em 0;font-size:.85em}"
+        "td,th{border:1px solid #ccc;padding:.25em .5em;text-align:right}th{background:#f3f3f3}"
         "td:first-child,th:first-child{text-align:left}code{background:#f3f3f3;padding:0 .2em}")
 
 

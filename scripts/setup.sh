@@ -20,11 +20,32 @@ if [ ${#missing[@]} -gt 0 ]; then
     fi
 fi
 
+# Headless Chromium checks the HTML report as a browser lays it out (tests skip without it).
+if ! command -v chromium >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+    echo "[setup] installing chromium (report layout tests)"
+    (export DEBIAN_FRONTEND=noninteractive; apt-get update -qq >/dev/null && \
+        apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
+        || echo "[setup] warning: could not install chromium; report layout tests will skip" >&2
+fi
+
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
     echo "[setup] creating .venv"
     "$PY" -m venv .venv
 fi
+# The Khronos glTF validator checks every GLB we write (tests, benchmarks); optional.
+GLTF_VALIDATOR=gltf-validator@2.0.0-dev.3.10
+if [ ! -d .venv/node/node_modules/gltf-validator ]; then
+    if command -v npm >/dev/null; then
+        echo "[setup] installing $GLTF_VALIDATOR into .venv/node"
+        mkdir -p .venv/node
+        npm install --silent --no-audit --no-fund --prefix .venv/node "$GLTF_VALIDATOR" >/dev/null 2>&1 \
+            || echo "[setup] warning: could not install $GLTF_VALIDATOR; glTF validation tests will skip" >&2
+    else
+        echo "[setup] warning: npm not found; glTF validation tests will skip" >&2
+    fi
+fi
+
 stamp=.venv/.mna-setup-stamp
 want=$(cat pyproject.toml scripts/setup.sh | sha1sum | cut -d' ' -f1)
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then

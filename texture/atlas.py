@@ -18,7 +18,7 @@ from mna.pointmetrics import POINTS, chamfer_fscore
 from .geometry import sample_surface
 from .islands import unique_rows, uv_islands
 from .orient import Reference, orient_pieces
-from .clip import clip_mesh
+from .clip import UV_COLUMNS, clip_mesh
 from .relax import RelaxConfig, relax_meshes
 from .pack import PACK_CANDIDATES, PRUNE_MARGIN, Packing, estimate_layouts, pack_islands, plan_layouts
 from .parallel import default_workers
@@ -208,7 +208,7 @@ def _halves(p: Piece, field: np.ndarray, passes: int = 4) -> list[Piece]:
     for _ in range(passes):
         halves, changed = [], False
         for sign in (1.0, -1.0):
-            c = clip_mesh(attrs, p.faces, sign * field)
+            c = clip_mesh(attrs, p.faces, sign * field, plane=UV_COLUMNS)
             half = Piece(p.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces)
             halves.append(half)
             if len(half.faces) == 0:
@@ -360,6 +360,25 @@ def _welded(p: Piece) -> Piece:
     return Piece(p.chart, p.xyz[first], p.uv[first], inverse.reshape(-1)[p.faces])
 
 
+def _unmirrored(p: Piece) -> Piece:
+    """``p`` with every island whose UVs run clockwise, seen from its faces' front (the side
+    their winding faces), reflected (u -> -u): a texture then reads the right way round from
+    outside. Flattening and packing never reflect (SLIM is flip-free, the packer only
+    rotates), so this holds in the packed atlas."""
+    q, isl = _prepared(p)
+    t = q.uv[q.faces]
+    signed = 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+                    - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+    mirrored = np.bincount(isl, weights=signed) < 0
+    if not mirrored.any():
+        return p
+    flip = np.zeros(len(q.uv), bool)
+    flip[q.faces[mirrored[isl]].ravel()] = True  # split vertices: each belongs to one island
+    uv = q.uv.copy()
+    uv[flip, 0] *= -1.0
+    return Piece(q.chart, q.xyz, uv, q.faces)
+
+
 def island_count(pieces: list[Piece], cache: dict | None = None) -> int:
     """Islands the pieces make (as :func:`_merge` numbers them); ``cache`` as for :func:`_prepared`."""
     return sum(int(_prepared(p, cache)[1].max()) + 1 for p in pieces if len(p.faces))
@@ -430,6 +449,9 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         pieces, orient_stats = _oriented(pieces, reference, cfg, prepared)
     t1 = time.perf_counter()
     relaxed, relax_stats = relax_pieces(pieces, cfg.relax, prepared)
+    unmirrored = [_unmirrored(p) for p in pieces]
+    relaxed = unmirrored if relaxed is pieces else [_unmirrored(p) for p in relaxed]
+    pieces = unmirrored
     t_relax = time.perf_counter()
     merged, plan, split_stats = _layout(relaxed, cfg)
     if relaxed is not pieces and 0 < cfg.target_utilization:

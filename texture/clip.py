@@ -10,6 +10,17 @@ border is the field's iso-line, not a staircase of whole faces.
 
 Example: on a flat grid over [0,1]^2 with ``field = 0.3 - x`` the kept region is exactly
 ``x < 0.3`` (area 0.3), whatever the grid resolution.
+
+Slivers: an iso-line passing within a small fraction ``t`` of an edge from a vertex would
+leave triangles of area ~``t`` (or ``t^2``) of their face, down to float rounding. With
+``plane`` (the two attribute columns of a flat parameterisation, the UVs), a vertex whose
+nearest crossing lies within ``SNAP_FRACTION`` of an edge from it is moved onto that
+crossing and becomes an *on-line* vertex (field 0): faces then keep it as a corner and no
+cut point is made beside it. The border is still the field's piecewise-linear iso-line, and
+every cut point sits at least ``SNAP_FRACTION`` of its edge from both ends. A snap that
+would shrink an incident face below ``SNAP_MIN_AREA`` of its area in ``plane`` (or turn it
+over) is not made. The rule is symmetric in the sign of ``field``, so clipping with
+``field`` and ``-field`` gives two halves with the same border.
 """
 from __future__ import annotations
 
@@ -17,9 +28,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: field values with |f| below this fraction of max|f| count as outside, so a cut never
-#: lands on an inside vertex (which would make zero-area slivers).
+#: field values with |f| below this fraction of max|f| are on the line (exactly 0).
 SNAP_REL = 1e-7
+#: a vertex within this fraction of an edge from the crossing on it moves onto the crossing.
+#: Cut triangles then keep at least ~SNAP_FRACTION^2 of their face's area (2 %).
+SNAP_FRACTION = 0.15
+#: the UV columns of the (xyz, uv, ...) attribute rows every caller clips
+UV_COLUMNS = (3, 4)
+#: a snap may shrink an incident face (area in ``plane``) to no less than this fraction.
+SNAP_MIN_AREA = 0.25
 
 
 class Clipped(NamedTuple):
@@ -30,33 +47,88 @@ class Clipped(NamedTuple):
     source_vertex: np.ndarray  # (V',) input vertex each output vertex is (-1 for cut points)
 
 
-def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray) -> Clipped:
+def _signed_areas(p: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    t = p[faces]
+    return (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
+
+
+def _snap(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane) -> tuple[np.ndarray, np.ndarray]:
+    """Move vertices within ``SNAP_FRACTION`` of a crossing onto it (see module docstring)."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e = e[np.sign(field[e[:, 0]]) * np.sign(field[e[:, 1]]) < 0]
+    if len(e) == 0:
+        return attrs, field
+    t = np.abs(field[e[:, 0]]) / (np.abs(field[e[:, 0]]) + np.abs(field[e[:, 1]]))  # from e[:, 0]
+    near = np.concatenate([e[:, 0], e[:, 1]])
+    frac = np.concatenate([t, 1.0 - t])
+    far = np.concatenate([e[:, 1], e[:, 0]])
+    ok = frac < SNAP_FRACTION
+    near, frac, far = near[ok], frac[ok], far[ok]
+    if len(near) == 0:
+        return attrs, field
+    order = np.lexsort((frac, near))  # per vertex, its nearest crossing first
+    near, frac, far = near[order], frac[order], far[order]
+    first = np.r_[True, near[1:] != near[:-1]]
+    near, frac, far = near[first], frac[first], far[first]
+    target = (1 - frac)[:, None] * attrs[near] + frac[:, None] * attrs[far]
+    cols = list(plane)
+    before = _signed_areas(attrs[:, cols], faces)
+    snapped = np.ones(len(near), bool)
+    for _ in range(4):  # un-snap vertices whose faces would shrink too much or turn over
+        moved = attrs.copy()
+        moved[near[snapped]] = target[snapped]
+        after = _signed_areas(moved[:, cols], faces)
+        bad = ~((after * np.sign(before) >= SNAP_MIN_AREA * np.abs(before)) | (before == 0))
+        if not bad.any():
+            break
+        bad_vertex = np.zeros(len(attrs), bool)
+        bad_vertex[faces[bad].ravel()] = True
+        snapped &= ~bad_vertex[near]
+    else:
+        return attrs, field
+    field = field.copy()
+    field[near[snapped]] = 0.0
+    return moved, field
+
+
+def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane: tuple[int, int] | None = None) -> Clipped:
     """Keep ``{field > 0}`` of the mesh ``(attrs (V, D), faces (F, 3))``; see module docstring.
 
-    Unused vertices are removed; output vertex order is the kept input vertices (in input
-    order) followed by the cut points (sorted by edge).
+    ``plane``: the two columns of ``attrs`` that hold a flat parameterisation (UVs); given,
+    vertices close to the iso-line snap onto it instead of leaving slivers. Unused vertices
+    are removed; output vertex order is the kept input vertices (in input order) followed
+    by the cut points (sorted by edge). A snapped vertex keeps its ``source_vertex``.
     """
     attrs = np.asarray(attrs, np.float64)
     faces = np.asarray(faces, np.int64)
     field = np.asarray(field, np.float64).copy()
     scale = float(np.abs(field).max()) if len(field) else 0.0
-    field[np.abs(field) <= SNAP_REL * scale] = -SNAP_REL * scale
+    field[np.abs(field) <= SNAP_REL * scale] = 0.0
+    if plane is not None and len(faces):
+        attrs, field = _snap(attrs, faces, field, plane)
     inside = field > 0
     fin = inside[faces]
-    n_in = fin.sum(1)
-    # rotate each partial face so that, for 1 inside, corner 0 is inside; for 2 inside,
-    # corner 2 is outside (rotation keeps the orientation)
+    fout = (field < 0)[faces]
+    n_in, n_out = fin.sum(1), fout.sum(1)
+    # rotate each partial face so that, for 1 inside, corner 0 is inside (and, with one
+    # on-line corner, corner 1 is outside); for 2 inside, corner 2 is outside (rotation
+    # keeps the orientation)
     shift = np.zeros(len(faces), np.int64)
-    one, two = n_in == 1, n_in == 2
+    mixed = (n_in == 1) & (n_out == 1)  # inside, on-line, outside: one triangle
+    one, two = (n_in == 1) & (n_out == 2), (n_in == 2) & (n_out == 1)
     shift[one] = np.argmax(fin[one], axis=1)
-    shift[two] = (np.argmin(fin[two], axis=1) + 1) % 3
+    shift[two] = (np.argmin(~fout[two], axis=1) + 1) % 3
+    shift[mixed] = np.argmax(fin[mixed], axis=1)
     idx = (np.arange(3)[None, :] + shift[:, None]) % 3
     rot = np.take_along_axis(faces, idx, axis=1)
+    rm = rot[mixed]
+    m_out1 = field[rm[:, 1]] < 0  # corner 1 outside (else corner 2 is)
 
     V = len(attrs)
     # cut edges: (inside vertex, outside vertex)
+    e_mixed = np.where(m_out1[:, None], rm[:, [0, 1]], rm[:, [0, 2]])
     e1 = np.concatenate([rot[one][:, [0, 1]], rot[one][:, [0, 2]],
-                         rot[two][:, [1, 2]], rot[two][:, [0, 2]]])
+                         rot[two][:, [1, 2]], rot[two][:, [0, 2]], e_mixed])
     key = np.minimum(e1[:, 0], e1[:, 1]) * V + np.maximum(e1[:, 0], e1[:, 1])
     ukey, first, inv = np.unique(key, return_index=True, return_inverse=True)
     a, b = e1[first, 0], e1[first, 1]
@@ -65,16 +137,22 @@ def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray) -> Clippe
     cut_id = V + inv.reshape(-1)
     n1, n2 = int(one.sum()), int(two.sum())
     c_ab, c_ac = cut_id[:n1], cut_id[n1:2 * n1]
-    c_bc, c_ac2 = cut_id[2 * n1:2 * n1 + n2], cut_id[2 * n1 + n2:]
+    c_bc, c_ac2 = cut_id[2 * n1:2 * n1 + n2], cut_id[2 * n1 + n2:2 * n1 + 2 * n2]
+    c_m = cut_id[2 * n1 + 2 * n2:]
     r1, r2 = rot[one], rot[two]
-    full = n_in == 3
+    full = (n_in > 0) & (n_out == 0)
+    # inside p, then (cut, on-line z) or (z, cut) in the face's own corner order
+    tri_mixed = np.where(m_out1[:, None], np.stack([rm[:, 0], c_m, rm[:, 2]], 1),
+                         np.stack([rm[:, 0], rm[:, 1], c_m], 1))
     new_faces = np.concatenate([
         faces[full],
         np.stack([r1[:, 0], c_ab, c_ac], 1),
         np.stack([r2[:, 0], r2[:, 1], c_bc], 1),
         np.stack([r2[:, 0], c_bc, c_ac2], 1),
+        tri_mixed.reshape(-1, 3),
     ])
-    src = np.concatenate([np.flatnonzero(full), np.flatnonzero(one), np.flatnonzero(two), np.flatnonzero(two)])
+    src = np.concatenate([np.flatnonzero(full), np.flatnonzero(one), np.flatnonzero(two), np.flatnonzero(two),
+                          np.flatnonzero(mixed)])
     all_attrs = np.concatenate([attrs, cut_attrs])
     all_field = np.concatenate([field, np.zeros(len(cut_attrs))])
     used = np.zeros(len(all_attrs), bool)

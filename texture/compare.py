@@ -32,9 +32,10 @@ from .xatlas_uv import XatlasOptions, unwrap
 
 SWEEP_MAX_COST = (0.5, 2.0, 8.0, 64.0, 1e4)
 SWEEP_MAX_ITERATIONS = (1, 4)
-COLUMNS = (("charts", "charts", "{:d}"), ("seam_length", "seam length", "{:.2f}"),
+COLUMNS = (("charts", "islands", "{:d}"), ("seam_length", "seam length", "{:.2f}"),
            ("distortion_metric", "distortion metric", "{:.3f}"), ("distortion_conformal", "conformal", "{:.3f}"),
            ("distortion_area", "area", "{:.3f}"), ("flipped_area_percent", "flipped %", "{:.3f}"),
+           ("mirrored_area_percent", "mirrored %", "{:.1f}"),
            ("folded_area_percent", "folded %", "{:.3f}"),
            ("orientation_undecided_area_percent", "undecided %", "{:.3f}"),
            ("uv_overlap_percent", "overlap %", "{:.3f}"),
@@ -65,6 +66,29 @@ def _xatlas_row(method, mesh_name, vertices, faces, opts, folder, harness_kw, si
     return _row(method, mesh_name, m.summary, res.seconds, row_extra)
 
 
+def harness_context(run: str | os.PathLike) -> dict:
+    """The harness's keyword arguments for every mesh of ``run``: one reference and one frame.
+
+    Reference = the run's input mesh (its normals decide folds, its open boundary which
+    borders are seams); without one, the surface is taken as closed (every island border
+    is a seam: the reconstruction's charts do not share border vertices). Frame = the
+    run's unit ball (``charts.npz``). ``mna compare`` and ``mna uv-metrics`` on a file of
+    the run both use this, so they report the same numbers for the same file.
+    """
+    run = Path(run)
+    mesh_in, _ = load_input(run)
+    return {"reference": mesh_in, "normalization": load_charts(run / "charts.npz").normalization,
+            "reference_is_closed": mesh_in is None}
+
+
+def run_folder_of(mesh_path: str | os.PathLike) -> Path | None:
+    """The run folder a mesh file belongs to (``RUN/mesh.obj``, ``RUN/xatlas/mesh.glb``), or None."""
+    for folder in Path(mesh_path).resolve().parents[:2]:
+        if (folder / "charts.npz").is_file() and (folder / "config.yaml").is_file():
+            return folder
+    return None
+
+
 def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, padding: int = 8) -> dict:
     """Write ``RUN/compare.json`` and ``RUN/compare.md`` (see module docstring); returns the JSON content."""
     run = Path(run)
@@ -82,8 +106,8 @@ def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, pa
 
     atlas_info = json.loads((run / "atlas.json").read_text())
     ours = read_back(run / "mesh.obj")
-    mesh_in, _ = load_input(run)
-    harness_kw = {"reference": mesh_in, "normalization": norm, "reference_is_closed": mesh_in is None}
+    harness_kw = harness_context(run)
+    mesh_in = harness_kw["reference"]
     rows = []
     m = measure(ours, **harness_kw)
     t = atlas_info["timings"]
@@ -114,6 +138,18 @@ def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, pa
     return result
 
 
+#: what the columns mean, in words (shown under the table in compare.md and in the report)
+LEGEND = ("Every row is measured the same way, in the unit-ball frame. Seam length: the 3D length of the "
+          "cut edges divided by the square root of the surface area. Distortion: how far the map from "
+          "texture to surface is from an isometry (metric; 0 = lengths kept up to one global scale), from "
+          "a conformal map (conformal; 0 = angles kept) and from an equal-area map (area), averaged over "
+          "texture area (docs/texture.md). Flipped, mirrored, folded and undecided are percentages of the "
+          "surface area: flipped = UV triangles turned over within their island; mirrored = the texture "
+          "reads mirror-inverted from the front; folded = facing the other way from the input; undecided "
+          "= the input faces both ways within 1 % of its diameter there. Time: the UV method alone "
+          "(ours: trim, orient, relax, pack).")
+
+
 def _fmt(value, spec):
     if value is None or (isinstance(value, float) and not np.isfinite(value)):
         return "-"
@@ -134,9 +170,10 @@ def table(rows: list[dict]) -> str:
 def _relax_sentence(a: dict) -> str:
     if "relax_energy_before" not in a:
         return " Islands not relaxed (the charts' own UVs)."
-    text = (f" Islands relaxed toward an isometry (SLIM): mean tr g + tr g^-1 - 4 "
-            f"{a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f}, at most "
-            f"{a['relax_iterations_max']} iterations, {a['relax_stopped_by_crossing']} stopped by a border crossing.")
+    text = (" Islands relaxed toward an isometry (SLIM): symmetric Dirichlet energy per unit area"
+            f" (0 = isometric) {a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f}, at most "
+            f"{a['relax_iterations_max']} iterations, {a['relax_stopped_by_crossing']} stopped by a border "
+            "crossing.")
     if a.get("relax_kept") is False:
         text += (f" Not kept: relaxed islands packed to {a['utilization_coarse_relaxed']:.2f} (coarse), the charts' "
                  f"own UVs to {a['utilization_coarse_unrelaxed']:.2f}, and the target is 0.6.")
@@ -146,10 +183,7 @@ def _relax_sentence(a: dict) -> str:
 def to_markdown(result: dict) -> str:
     a = result["atlas"]
     parts = [f"# compare: {result['run']}", "",
-             "One harness (texture.harness.measure) for every row; unit-ball frame; reference: "
-             f"{result['reference']}. Seam length = 3D length of cut edges / sqrt(area); distortions as in DESIGN "
-             "(UV-area weighted); flipped/folded/undecided in % of 3D area (undecided: the input faces both ways "
-             "within 1 % of the diameter there, see docs/texture.md); time = UV method only (ours: trim + orient + relax + pack).", "",
+             LEGEND + f" Reference surface: {result['reference']}.", "",
              table(result["methods"]), "",
              f"Our atlas: {a['islands']} islands from {a['charts_used']} charts, doubly covered "
              f"{a['doubly_covered_percent']:.2f} % of the area (before trimming "

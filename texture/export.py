@@ -1,10 +1,19 @@
 """Write a UV-mapped mesh with its texture: OBJ + MTL + PNG, and GLB with the texture embedded.
 
-Meshes are built with ``trimesh.Trimesh(..., process=False)`` so the split vertices of
-UV seams survive. UV conventions: our UVs have v up (origin bottom-left of the image).
-OBJ stores them as they are; glTF stores ``v' = 1 - v`` (origin top-left), which trimesh
-applies on export and undoes on load, so reading either file back with trimesh gives
-our UVs (to float32 precision for GLB, 8 decimals for OBJ).
+What every export carries, so it opens right in Blender and glTF viewers:
+
+- positions and UVs rounded to float32 once, so the OBJ (written with 9 significant
+  digits, which round-trip float32 exactly, at any scale) and the GLB (float32) hold the
+  same numbers and measure identically;
+- smooth shading normals (:mod:`texture.normals`): seam copies share a normal, vertices
+  are split only where a crease runs through them;
+- a PBR material: base colour = the texture, ``metallicFactor`` 0 (glTF's default is 1, a
+  mirror-like metal), roughness ``ROUGHNESS``, ``doubleSided`` when the surface is open
+  (its back faces are visible). The MTL says the same (``Pm``/``Pr``, read by Blender).
+
+UV conventions: our UVs have v up (origin bottom-left of the image). OBJ stores them as
+they are; glTF stores ``v' = 1 - v`` (origin top-left), which trimesh applies on export
+and undoes on load, so reading either file back gives our UVs.
 
 All files of one export are written under temporary names and renamed only after all
 of them were written, so an interruption never leaves a half-written set.
@@ -12,53 +21,90 @@ of them were written, so an interruption never leaves a half-written set.
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 from pathlib import Path
 
 import numpy as np
 
 from mna.atomic import atomic_path
+from mna.errors import InputError
 
-from .uvmesh import UVMesh
+from .normals import Shading, open_surface, shading_normals
+from .uvmesh import UVMesh, weld_ids
 
 MATERIAL = "material_0"
+#: a matte, plastic-like finish: the checker reads the same from every view.
+ROUGHNESS = 0.8
 
 
-def _trimesh(mesh: UVMesh, image: np.ndarray | None):
-    import PIL.Image
-    import trimesh
+def asset_mesh(mesh: UVMesh) -> UVMesh:
+    """``mesh`` with positions and UVs rounded to what the GLB stores (float32, v flipped).
 
-    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False, validate=False)
-    pil = None
-    if image is not None:
-        pil = PIL.Image.fromarray(np.round(np.clip(image[..., :3], 0, 1) * 255).astype(np.uint8))
-    material = trimesh.visual.material.SimpleMaterial(image=pil, diffuse=[255, 255, 255, 255],
-                                                      ambient=[255, 255, 255, 255], specular=[0, 0, 0, 255])
-    material.name = MATERIAL
-    tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv, material=material)
-    return tm
+    Raises ``InputError`` when a coordinate exceeds float32's range (about 3.4e38).
+    """
+    limit = float(np.finfo(np.float32).max)
+    if np.abs(mesh.vertices).max() > limit or np.abs(mesh.uv).max() > limit:
+        raise InputError("coordinates exceed the float32 range glTF stores (about 3.4e38): scale the mesh down")
+    # UVs on multiples of 2^-24: then v and glTF's 1 - v are both exact in float32 (in [0, 1])
+    uv = (np.round(mesh.uv * 2.0 ** 24) / 2.0 ** 24).astype(np.float32).astype(np.float64)
+    return UVMesh(mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces, uv)
 
 
-def obj_text(mesh: UVMesh, mtl_name: str) -> str:
-    """OBJ text (positions, UVs, faces, ``mtllib``/``usemtl``) written by trimesh."""
-    import trimesh
+def shading(mesh: UVMesh) -> Shading:
+    """Shading normals of ``mesh`` (see :mod:`texture.normals`)."""
+    return shading_normals(mesh.vertices, mesh.faces, weld_ids(mesh.vertices))
 
-    text, _ = trimesh.exchange.obj.export_obj(_trimesh(mesh, None), include_normals=False, include_color=False,
-                                              include_texture=True, return_texture=True, mtl_name=mtl_name,
-                                              digits=10)
-    return text
+
+def _fmt_rows(prefix: str, rows: np.ndarray, fmt: str = "%.9g") -> str:
+    """One ``prefix`` line per row; ``%.9g`` keeps 9 significant digits (exact for float32)."""
+    if len(rows) == 0:
+        return ""
+    buf = io.StringIO()
+    row_fmt = fmt if "%" in fmt and fmt.count("%") > 1 else " ".join([fmt] * rows.shape[1])
+    np.savetxt(buf, rows, fmt=f"{prefix} {row_fmt}")
+    return buf.getvalue()
+
+
+def obj_text(mesh: UVMesh, mtl_name: str, shade: Shading | None = None) -> str:
+    """OBJ text: ``mtllib``/``usemtl``, ``v``, ``vt``, ``vn`` (9 significant digits), ``f v/vt/vn``.
+
+    Positions and UVs are indexed by ``mesh``'s vertices (seam copies stay separate ``v``
+    lines, so every face keeps its own corners); normals by the shading's output vertices.
+    """
+    shade = shade or shading(mesh)
+    f = mesh.faces + 1
+    n = shade.faces + 1
+    corners = np.stack([f, f, n], -1).reshape(len(f), 9)
+    face_lines = _fmt_rows("f", corners, "%d/%d/%d %d/%d/%d %d/%d/%d")
+    return (f"# mna export: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces\n"
+            f"mtllib {mtl_name}\nusemtl {MATERIAL}\n"
+            + _fmt_rows("v", mesh.vertices) + _fmt_rows("vt", mesh.uv)
+            + _fmt_rows("vn", shade.normals.astype(np.float32)) + face_lines)
 
 
 def mtl_text(texture_name: str) -> str:
-    return (f"newmtl {MATERIAL}\nKa 1.0 1.0 1.0\nKd 1.0 1.0 1.0\nKs 0.0 0.0 0.0\nNs 1.0\nillum 1\n"
-            f"map_Kd {texture_name}\n")
+    """The material for OBJ readers: white diffuse times the texture, no specular, metallic 0."""
+    return (f"newmtl {MATERIAL}\nKa 0.0 0.0 0.0\nKd 1.0 1.0 1.0\nKs 0.0 0.0 0.0\nNs 10.0\nillum 1\n"
+            f"Pr {ROUGHNESS}\nPm 0.0\nmap_Kd {texture_name}\n")
 
 
-def glb_bytes(mesh: UVMesh, image: np.ndarray) -> bytes:
-    """glTF binary with the texture embedded as PNG (trimesh)."""
+def glb_bytes(mesh: UVMesh, image: np.ndarray, shade: Shading | None = None, double_sided: bool | None = None) -> bytes:
+    """glTF binary: the mesh on the shading's vertices, normals, PBR material with the texture as PNG."""
+    import PIL.Image
     import trimesh
 
-    return trimesh.exchange.gltf.export_glb(trimesh.Scene(_trimesh(mesh, image)), include_normals=False)
+    shade = shade or shading(mesh)
+    if double_sided is None:
+        double_sided = open_surface(mesh.faces, weld_ids(mesh.vertices))
+    tm = trimesh.Trimesh(mesh.vertices[shade.source], shade.faces, process=False, validate=False)
+    pil = PIL.Image.fromarray(np.round(np.clip(image[..., :3], 0, 1) * 255).astype(np.uint8))
+    material = trimesh.visual.material.PBRMaterial(
+        name=MATERIAL, baseColorTexture=pil, baseColorFactor=[255, 255, 255, 255],
+        metallicFactor=0.0, roughnessFactor=ROUGHNESS, doubleSided=bool(double_sided))
+    tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv[shade.source], material=material)
+    tm.vertex_normals = shade.normals
+    return trimesh.exchange.gltf.export_glb(trimesh.Scene(tm), include_normals=True)
 
 
 def export_textured(folder: str | os.PathLike, mesh: UVMesh, image: np.ndarray, stem: str = "mesh") -> dict:
@@ -73,8 +119,10 @@ def export_textured(folder: str | os.PathLike, mesh: UVMesh, image: np.ndarray, 
     folder.mkdir(parents=True, exist_ok=True)
     paths = {"obj": folder / f"{stem}.obj", "mtl": folder / f"{stem}.mtl",
              "texture": folder / f"{stem}_texture.png", "glb": folder / f"{stem}.glb"}
-    obj = obj_text(mesh, paths["mtl"].name)
-    glb = glb_bytes(mesh, image)
+    mesh = asset_mesh(mesh)
+    shade = shading(mesh)
+    obj = obj_text(mesh, paths["mtl"].name, shade)
+    glb = glb_bytes(mesh, image, shade)
     with contextlib.ExitStack() as stack:
         tmp = {k: stack.enter_context(atomic_path(p)) for k, p in paths.items() if k != "texture"}
         tmp["obj"].write_text(obj)

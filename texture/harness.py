@@ -15,6 +15,10 @@ Summary keys (example values for xatlas on the bunny in docs/texture.md):
 ``distortion_*_3d``    the same weighted by 3D area.
 ``flipped_faces``      faces whose UV orientation disagrees with their island's majority
                        (majority by UV area); ``flipped_area_percent`` their 3D area.
+``mirrored_area_percent`` 3D area (percent) of faces whose UV triangle runs clockwise seen
+                       from the face's front (the side its winding, and so every viewer's
+                       normal, faces): there the texture reads mirrored, text backwards.
+                       ``mirrored_islands``: islands whose majority (by UV area) is mirrored.
 ``folded_faces``       faces whose 3D normal disagrees (negative dot product) with the
                        reference normal, against their island's majority (by 3D area).
                        Reference = the reference surface's (vertex-interpolated) normal at
@@ -121,6 +125,13 @@ def _majority_disagrees(sign: np.ndarray, weight: np.ndarray, island: np.ndarray
     return (sign != 0) & (major != 0) & (sign != major)
 
 
+def _mirrored(geom: FaceGeometry, island: np.ndarray) -> tuple[np.ndarray, int]:
+    """((F,) faces with clockwise UVs seen from their front, number of mostly-mirrored islands)."""
+    mirrored = geom.valid & (geom.uv_area < 0)
+    vote = np.bincount(island, weights=np.where(geom.valid, geom.uv_area, 0.0), minlength=island.max() + 1)
+    return mirrored, int((vote < 0).sum())
+
+
 def _flipped(geom: FaceGeometry, island: np.ndarray) -> np.ndarray:
     sign = np.where(geom.valid, np.sign(geom.uv_area), 0.0)
     return _majority_disagrees(sign, np.abs(geom.uv_area), island)
@@ -201,6 +212,8 @@ def _texel_density(geom: FaceGeometry) -> tuple[np.ndarray, float, float]:
     rho = np.sqrt(np.abs(geom.uv_area) / np.maximum(geom.area_3d, 1e-300))
     rho[geom.area_3d <= 0] = np.nan
     ok = np.isfinite(rho) & geom.valid
+    if not ok.any():  # every UV triangle degenerate: no density to speak of
+        return rho, float("nan"), float("nan")
     w = geom.area_3d[ok]
     mean = float((rho[ok] * w).sum() / w.sum())
     std = float(np.sqrt(((rho[ok] - mean) ** 2 * w).sum() / w.sum()))
@@ -238,6 +251,7 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     elif reference_is_closed:
         boundary = np.zeros((0, 2, 3))
     flipped = _flipped(geom, island)
+    mirrored, mirrored_islands = _mirrored(geom, island)
     folded, undecided = _folded(m, geom, island, weld, projector)
     total_area = float(geom.area_3d.sum())
     tex_uv, inside = _texture_space(m.uv)
@@ -252,6 +266,8 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
         **_aggregates(geom),
         "flipped_faces": int(flipped.sum()),
         "flipped_area_percent": 100.0 * float(geom.area_3d[flipped].sum()) / total_area,
+        "mirrored_area_percent": 100.0 * float(geom.area_3d[mirrored].sum()) / total_area,
+        "mirrored_islands": mirrored_islands,
         "folded_faces": int(folded.sum()),
         "folded_area_percent": 100.0 * float(geom.area_3d[folded].sum()) / total_area,
         "orientation_undecided_area_percent": 100.0 * float(geom.area_3d[undecided].sum()) / total_area,

@@ -37,7 +37,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .clip import clip_mesh
+from .clip import UV_COLUMNS, clip_mesh
 from .geometry import MeshProjector
 from .harness import FOLD_TOL, facet_normals
 from .islands import uv_islands
@@ -151,7 +151,7 @@ class _Part(NamedTuple):
 
     def clip(self, field: np.ndarray) -> tuple["_Part", np.ndarray]:
         p = self.piece
-        c = clip_mesh(np.column_stack([p.xyz, p.uv, self.ref]), p.faces, field)
+        c = clip_mesh(np.column_stack([p.xyz, p.uv, self.ref]), p.faces, field, plane=UV_COLUMNS)
         return _Part(Piece(p.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces), c.attrs[:, 5:]), c.source_vertex
 
     def keep(self, faces: np.ndarray) -> "_Part":

@@ -47,6 +47,11 @@ SOLID_FACE_REL = 1e-2
 SHRINK, BISECT_TOL = 0.95, 0.005
 #: a reflection is chosen only when it fits this much better than the best rotation.
 REFLECTION_GAIN = 0.5
+#: xatlas calls per placement to get every island the right way round (see :func:`_attempt`)
+MIRROR_TRIES = 5
+#: scale steps (FINE_SHRINK each) tried for a packing with no island mirrored before the
+#: search without xatlas's 90-degree turns
+UNMIRROR_STEPS = 8
 #: xatlas ``PackOptions`` overrides tried in turn (highest utilisation kept). Its 90-degree
 #: chart rotations sometimes pack a few large islands worse: on a 3-chart bunny fit at 2048,
 #: 0.51 with them and 0.54 without; ``bruteForce`` gained < 0.001 at 12x the time.
@@ -208,6 +213,15 @@ class _Islands:
         """(uv, faces, island) handed to xatlas: the islands' outlines."""
         return self._xatlas[0]
 
+    def xatlas_mesh_mirrored(self, flip: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:attr:`xatlas_mesh` with the islands where ``flip`` (n,) is set reflected (u -> -u)."""
+        uv, faces, x_island = self.xatlas_mesh
+        if not flip.any():
+            return uv, faces, x_island
+        uv = uv.copy()
+        uv[flip[self._vert_island[self.src]], 0] *= -1.0
+        return uv, faces, x_island
+
     @property
     def src(self) -> np.ndarray:
         """Our vertex of each vertex of :attr:`xatlas_mesh`."""
@@ -290,8 +304,9 @@ def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray) -> np
     return np.concatenate(out) if out else faces
 
 
-def _place(isl: _Islands, atlas, tpu: float) -> tuple[np.ndarray, float]:
-    """(V,2) texel positions re-placed rigidly at ``tpu``, largest deviation from xatlas (texels)."""
+def _place(isl: _Islands, atlas, tpu: float) -> tuple[np.ndarray, float, list[int]]:
+    """Texel positions (V, 2) re-placed rigidly at ``tpu``, the largest deviation from xatlas
+    (texels), and the islands placed mirrored (a reflection of their UVs fits xatlas's)."""
     vmap, _, out_uv = atlas[0]
     dst = np.zeros_like(isl.uv)
     seen = np.zeros(len(isl.uv), bool)
@@ -299,8 +314,8 @@ def _place(isl: _Islands, atlas, tpu: float) -> tuple[np.ndarray, float]:
     dst[isl.src[vmap]] = out_uv.astype(np.float64) * np.array([atlas.width, atlas.height])
     seen[isl.src[vmap]] = True
     placed = np.zeros_like(isl.uv)
-    worst = 0.0
-    for verts in isl.verts:
+    worst, turned = 0.0, []
+    for k, verts in enumerate(isl.verts):
         w = isl.weight[verts] * seen[verts]
         if w.sum() <= 0:  # zero UV area: covers no texel, xatlas ignores it; keep it inside the square
             placed[verts] = _inside_square(isl.uv[verts] * tpu, dst[verts][seen[verts]], atlas)
@@ -310,7 +325,53 @@ def _place(isl: _Islands, atlas, tpu: float) -> tuple[np.ndarray, float]:
         placed[verts] = tpu * (isl.uv[verts] - mu_s) @ fit.rotation.T + mu_d
         on = w > 0
         worst = max(worst, float(np.abs(placed[verts][on] - dst[verts][on]).max()))
-    return placed, worst
+        if np.linalg.det(fit.rotation) < 0:
+            turned.append(k)
+    return placed, worst, turned
+
+
+def _unmirror(px: np.ndarray, axis: int = 0) -> np.ndarray:
+    """``px`` reflected across the line through its bounding box's centre, normal to ``axis``.
+
+    xatlas's 90-degree chart "rotation" is a transpose, a reflection: a texture would read
+    mirrored there. Reflecting once more turns the island into a proper rotation of itself
+    with the same bounding box, so it stays in the box xatlas reserved for it; only its
+    gutter to the neighbours has to be checked again (:func:`_gutter_clashes`).
+    """
+    out = px.copy()
+    out[:, axis] = px[:, axis].min() + px[:, axis].max() - px[:, axis]
+    return out
+
+
+def _gutter_clashes(isl: _Islands, px: np.ndarray, islands: list[int], resolution: int, gap: int) -> list[int]:
+    """Those of ``islands`` with a texel of another island within ``gap`` texels (a square
+    window), at ``resolution``."""
+    from scipy import ndimage
+
+    from .raster import face_id_image
+
+    face, _ = face_id_image(px[isl.faces] / resolution, resolution, resolution)
+    label = np.where(face >= 0, isl.island[np.maximum(face, 0)], -1)
+    size, top = 2 * gap + 1, np.iinfo(np.int64).max
+    high = ndimage.maximum_filter(label, size=size, mode="constant", cval=-1)
+    low = ndimage.minimum_filter(np.where(label < 0, top, label), size=size, mode="constant", cval=top)
+    near = (label >= 0) & ((high != label) | (low != label))
+    return sorted(set(np.unique(label[near]).tolist()) & set(islands))
+
+
+def _turned_fit(isl: _Islands, px: np.ndarray, mirrored: list[int], resolution: int, padding: int) -> np.ndarray | None:
+    """``px`` with the mirrored islands turned back inside their boxes, keeping half the
+    gutter (each reflected across its box's vertical line, or where that comes too close,
+    its horizontal one), or None."""
+    gap = max(1, padding // 2)
+    px = px.copy()
+    for k in mirrored:
+        px[isl.verts[k]] = _unmirror(px[isl.verts[k]], 0)
+    clash = _gutter_clashes(isl, px, mirrored, resolution, gap)
+    for k in clash:  # back to xatlas's outline, then reflected across the other axis
+        v = isl.verts[k]
+        px[v] = _unmirror(_unmirror(px[v], 0), 1)
+    return None if clash and _gutter_clashes(isl, px, clash, resolution, gap) else px
 
 
 def _inside_square(px: np.ndarray, near: np.ndarray, atlas) -> np.ndarray:
@@ -331,14 +392,32 @@ def _inside(isl: _Islands, px: np.ndarray, resolution: int) -> bool:
     return bool(px[used].min() >= 0 and px[used].max() <= resolution)
 
 
-def _attempt(isl: _Islands, resolution, padding, tpu, options):
-    """Texel positions of a valid xatlas placement at ``tpu``, or None."""
-    atlas = _xatlas_pack(*isl.xatlas_mesh, resolution, padding, tpu, options)
-    if atlas.atlas_count != 1 or atlas.width > resolution or atlas.height > resolution:
-        return None
-    px, residual = _place(isl, atlas, tpu)
-    if residual > MAX_FIT_RESIDUAL or not _inside(isl, px, resolution):
-        return None
+def _attempt(isl: _Islands, resolution, padding, tpu, options, unmirror: bool = False):
+    """Texel positions of a valid xatlas placement at ``tpu`` (with ``unmirror``: with no
+    island mirrored), or None.
+
+    xatlas's 90-degree chart "rotation" is a transpose: the island it turns comes back
+    mirrored. Such islands are handed to xatlas mirrored on the next try, so that the
+    transpose turns them the right way round (a transpose of a reflection is a rotation);
+    an island xatlas then leaves alone is handed over unmirrored again. After
+    ``MIRROR_TRIES`` xatlas calls the islands still mirrored are turned back inside the box
+    xatlas gave them (:func:`_unmirror`), if half the gutter remains.
+    """
+    flip = np.zeros(isl.n, bool)
+    for _ in range(MIRROR_TRIES if unmirror else 1):
+        atlas = _xatlas_pack(*isl.xatlas_mesh_mirrored(flip), resolution, padding, tpu, options)
+        if atlas.atlas_count != 1 or atlas.width > resolution or atlas.height > resolution:
+            return None
+        px, residual, mirrored = _place(isl, atlas, tpu)
+        if residual > MAX_FIT_RESIDUAL or not _inside(isl, px, resolution):
+            return None
+        if not mirrored or not unmirror:
+            break
+        flip[mirrored] ^= True
+    else:
+        px = _turned_fit(isl, px, mirrored, resolution, padding)
+        if px is None:
+            return None
     # xatlas keeps charts `padding` texels apart and each island moved <= residual: if two
     # moves cannot close the gutter, skip the (slow) rasterised check; pack_islands runs it
     # on the packing it returns anyway
@@ -500,7 +579,7 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     isl = _Islands(np.asarray(uv, np.float64), np.asarray(faces, np.int64), np.asarray(island, np.int64))
     if isl.area <= 0:
         raise ValueError("pack_islands: all UV faces have zero area")
-    best, attempts = None, 0  # (utilisation, tpu, texel positions)
+    best, attempts = None, 0  # (utilisation, tpu, texel positions, options)
 
     def search(opts, start=None, shrink=SHRINK):  # keeps the best valid placement found
         nonlocal best, attempts
@@ -511,7 +590,7 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
         attempts += n
         overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
         if overlap == 0 and (best is None or util > best[0]):
-            best = (util, tpu, px)
+            best = (util, tpu, px, opts)
 
     searches = [(options, None, SHRINK)] if options is not None else []
     if options is None:
@@ -525,7 +604,7 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
             if plan.uv is not None and _inside(isl, plan.uv * resolution, resolution):
                 overlap, util = verify_packing(plan.uv, isl.faces, isl.island, resolution)
                 if overlap == 0:
-                    best = (util, plan.texels_per_unit, plan.uv * resolution)
+                    best = (util, plan.texels_per_unit, plan.uv * resolution, plan.options)
             if best is None:
                 searches = [(plan.options, plan.texels_per_unit, FINE_SHRINK)]
     for opts, start, shrink in searches:
@@ -533,6 +612,9 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     if best is None and options is None:  # the coarse plan did not carry over: search every candidate
         for opts in PACK_CANDIDATES:
             search(opts)
+    if best is not None and mirrored_islands(isl, best[2]):
+        # the search lets xatlas's transposes mirror islands (cheap); the packing may not
+        best = _without_mirrors(isl, resolution, padding, best, max_attempts)
     packer = "xatlas"
     if best is None:
         tpu, px = shelf_pack(isl, resolution, padding)
@@ -540,9 +622,48 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
         assert overlap == 0 and _inside(isl, px, resolution), "shelf packing is valid by construction"
         packer = "shelf"
     else:
-        util, tpu, px = best
+        util, tpu, px, _ = best
     return Packing(px / resolution, tpu / resolution, tpu, resolution, padding, util, 0,
                    time.perf_counter() - t0, attempts, packer)
+
+
+def mirrored_islands(isl: _Islands, px: np.ndarray) -> list[int]:
+    """Islands whose placement ``px`` (V, 2) reverses their UVs' orientation (a reflection)."""
+    before = np.bincount(isl.island, weights=_signed_areas(isl.uv, isl.faces), minlength=isl.n)
+    after = np.bincount(isl.island, weights=_signed_areas(px, isl.faces), minlength=isl.n)
+    return np.flatnonzero(before * after < 0).tolist()
+
+
+def _signed_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    t = uv[faces]
+    return (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
+
+
+def _without_mirrors(isl: _Islands, resolution: int, padding: int, best: tuple, max_attempts: int) -> tuple | None:
+    """The best packing's options again, islands kept the right way round (:func:`_attempt`
+    with ``unmirror``), at its scale or a few ``FINE_SHRINK`` steps below; failing that, a
+    search without xatlas's 90-degree turns (which never mirrors). None if neither packs.
+
+    Like the plan, this runs at the coarse resolution and its placement is scaled up (its
+    gutters scale with it): each xatlas call costs about a sixteenth of a full one.
+    """
+    _, tpu, _, opts = best
+    res, pad = _coarse(resolution, padding)
+    for step in range(UNMIRROR_STEPS):
+        t = tpu * FINE_SHRINK ** step
+        px = _attempt(isl, res, pad, t * res / resolution, opts, unmirror=True)
+        if px is not None and _inside(isl, px * resolution / res, resolution):
+            px = px * resolution / res
+            overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
+            if overlap == 0:
+                return util, t, px, opts
+    plain = {**(opts or {}), "rotate_charts": False}
+    found = _search(isl, resolution, padding, plain, max_attempts, None, SHRINK)
+    if found is None:
+        return None
+    t, px, _ = found
+    overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
+    return (util, t, px, plain) if overlap == 0 and not mirrored_islands(isl, px) else None
 
 
 def shelf_pack(isl: _Islands, resolution: int, padding: int) -> tuple[float, np.ndarray]:

@@ -20,7 +20,8 @@ from .relax import RelaxConfig
 from .charts import load_charts
 from .export import export_textured
 from .harness import measure
-from .textures import bake, check_size, source_colors, checker_frequency, checker_image, uvgrid_image
+from .textures import (MIN_TEXELS_PER_SQUARE, SQUARE_SIZE, bake, check_size, checker_image, source_colors,
+                       squares_per_uv_unit, uv_grid_image, uv_length_scale)
 from .uvmesh import Normalization, UVMesh, load_uv_mesh, unit_ball_normalization
 from .xatlas_uv import XatlasOptions, check_mesh, unwrap
 
@@ -91,18 +92,30 @@ def reference_points(mesh, points, norm: Normalization, count: int = 25000, seed
     return None
 
 
+def square_size_for(mesh_unit: UVMesh, size: int, requested: float | None = None) -> float:
+    """The checker square side (unit-ball frame): ``requested``, or by default ``SQUARE_SIZE``
+    grown to the smallest square the texture can draw (``MIN_TEXELS_PER_SQUARE`` texels), so a
+    small texture still gets a true checker, just a coarser one. A requested size that the
+    texture cannot draw is refused by :func:`texture.textures.check_frequency`."""
+    if requested is not None:
+        return float(requested)
+    s = uv_length_scale(mesh_unit.vertices, mesh_unit.faces, mesh_unit.uv)
+    return max(SQUARE_SIZE, s * MIN_TEXELS_PER_SQUARE / size * (1 + 1e-9))
+
+
 def make_texture(kind: str, mesh_unit: UVMesh, size: int, padding: int, source=None,
                  square_size: float | None = None) -> np.ndarray:
-    """``checker`` / ``uvgrid`` (3D-size-matched, see textures) or ``bake`` (needs ``source``, unit frame)."""
-    from .textures import SQUARE_SIZE
+    """``checker`` / ``uvgrid`` (3D-size-matched, see textures) or ``bake`` (needs ``source``, unit frame).
 
+    ``square_size`` is the checker square's side in the unit-ball frame (``None``: see
+    :func:`square_size_for`).
+    """
     if kind not in TEXTURES:
         raise InputError(f"unknown texture {kind!r}; choose from {', '.join(TEXTURES)}")
-    freq = checker_frequency(mesh_unit, size, square_size or SQUARE_SIZE)
-    if kind == "checker":
-        return checker_image(size, freq)
-    if kind == "uvgrid":
-        return uvgrid_image(size, freq)
+    if kind in ("checker", "uvgrid"):
+        freq = squares_per_uv_unit(mesh_unit.vertices, mesh_unit.faces, mesh_unit.uv,
+                                   square_size_for(mesh_unit, size, square_size))
+        return checker_image(freq, size) if kind == "checker" else uv_grid_image(freq, size)
     if source is None:
         raise InputError("--texture bake needs the run's input mesh (RUN/config.yaml 'input'), which is not a readable mesh")
     return bake(mesh_unit, source, size, padding)
@@ -156,7 +169,8 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.stats.pop("timings").items()},
                "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
     timings["export_total"] = t3 - t0
-    result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax), "atlas": atlas.stats,
+    result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax),
+              "checker_square_size": square_size_for(atlas.mesh_unit, size, square_size), "atlas": atlas.stats,
               "uv_metrics": metrics.summary, "timings": timings, "files": paths}
     write_json(run / "atlas.json", result)
     return result

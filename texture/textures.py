@@ -5,11 +5,12 @@ Images are float arrays ``(H, W, C)`` in [0, 1], row 0 at the *top* (v = 1); tex
 ``texture.raster``). Files are read and written with OpenImageIO: PNG as 8-bit,
 EXR as 32-bit float.
 
-Same-size checker squares on every method: the checker is drawn in UV with
-``frequency`` squares per UV unit, chosen as ``uv_per_length / square_size`` where
-``uv_per_length = sqrt(sum |UV area| / sum 3D area)`` (unit-ball frame). A square then
-covers ``square_size`` of surface length on average, whatever the atlas's UV scale,
-so our atlas and xatlas show squares of the same 3D size.
+Same-size checker squares on every method (exports and renders use these functions):
+the checker is drawn in UV with ``n = s / L`` squares per UV unit, where
+``s = sqrt(sum 3D area / sum |UV area|)`` is the mean 3D length per UV unit and ``L`` the
+square's side on the surface (unit-ball frame). A square then covers ``L`` of surface
+length on average, whatever the atlas's UV scale, so our atlas and xatlas show squares
+of the same 3D size.
 """
 from __future__ import annotations
 
@@ -28,9 +29,10 @@ from .uvmesh import UVMesh
 
 #: default checker square: 0.1 of the unit ball (20 squares across the diameter).
 SQUARE_SIZE = 0.1
-#: smallest checker square in texels (a finer checker aliases).
-MIN_SQUARE_TEXELS = 4
-LIGHT, DARK = np.array([0.92, 0.92, 0.92]), np.array([0.25, 0.32, 0.45])
+#: a generated texture must give each square at least this many texels (finer aliases).
+MIN_TEXELS_PER_SQUARE = 4
+#: default checker colours (light, dark), sRGB; square (0, 0) at the UV origin is the light one.
+CHECKER_COLORS = ((0.92, 0.92, 0.92), (0.25, 0.32, 0.45))
 
 
 def check_size(size) -> int:
@@ -48,16 +50,40 @@ def check_size(size) -> int:
     return value
 
 
-def uv_per_length(mesh_unit: UVMesh) -> float:
-    """``sqrt(sum |UV area| / sum 3D area)``: UV length per unit of surface length."""
-    uv_area = triangle_areas(mesh_unit.uv, mesh_unit.faces).sum()
-    area = triangle_areas(mesh_unit.vertices, mesh_unit.faces).sum()
-    return float(np.sqrt(uv_area / area))
+def uv_length_scale(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> float:
+    """``s = sqrt(A3 / Auv)``: mean 3D length per UV unit of a UV-mapped mesh.
+
+    Example: a 2 x 2 square mapped onto the unit UV square has ``s = 2``.
+    """
+    a3 = triangle_areas(np.asarray(vertices, np.float64), faces).sum()
+    auv = triangle_areas(np.asarray(uv, np.float64), faces).sum()
+    if not (np.isfinite(auv) and auv > 0):
+        raise InputError("the mesh's UV triangles have zero total area (or non-finite UVs)")
+    if not (np.isfinite(a3) and a3 > 0):
+        raise InputError("the mesh's triangles have zero total 3D area (or non-finite positions)")
+    return float(np.sqrt(a3 / auv))
 
 
-def checker_frequency(mesh_unit: UVMesh, size: int, square_size: float = SQUARE_SIZE) -> float:
-    """Squares per UV unit so a square spans ``square_size`` of surface (clamped to >= 4 texels)."""
-    return float(min(uv_per_length(mesh_unit) / square_size, size / MIN_SQUARE_TEXELS))
+def squares_per_uv_unit(vertices, faces, uv, square_size: float = SQUARE_SIZE) -> float:
+    """Checker frequency ``n = s / L`` (squares per UV unit) for squares of mean 3D side ``L``.
+
+    A square spans ``1 / n`` UV units, i.e. ``s / n = L`` units of surface length. Example:
+    a 2 x 2 square on the unit UV square (``s = 2``) with ``L = 0.25`` gets ``n = 8``.
+    Positions in the frame ``L`` is given in (the unit-ball frame for ``--square-size``).
+    """
+    if not (isinstance(square_size, (int, float, np.floating)) and np.isfinite(square_size) and square_size > 0):
+        raise InputError(f"checker square size must be a finite number > 0, got {square_size!r}")
+    return uv_length_scale(vertices, faces, uv) / float(square_size)
+
+
+def check_frequency(frequency: float, size: int) -> None:
+    """Refuse a checker too fine for ``size`` texels: each square needs ``MIN_TEXELS_PER_SQUARE``."""
+    if not (np.isfinite(frequency) and frequency > 0):
+        raise InputError(f"checker frequency must be a finite number > 0, got {frequency}")
+    if size / frequency < MIN_TEXELS_PER_SQUARE:
+        raise InputError(f"a {size}-texel texture cannot hold {frequency:.1f} checker squares per UV unit "
+                         f"(< {MIN_TEXELS_PER_SQUARE} texels each): use a larger texture size or a larger "
+                         "square size")
 
 
 def texel_centers(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -67,22 +93,37 @@ def texel_centers(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     return np.meshgrid(u, v, indexing="xy")
 
 
-def checker_image(size: int, frequency: float) -> np.ndarray:
-    """(size, size, 3) checkerboard with ``frequency`` squares per UV unit; square (0,0) is light."""
+def checker_image(frequency: float, size: int = 2048, colors=CHECKER_COLORS) -> np.ndarray:
+    """``(size, size, 3)`` checkerboard with ``frequency`` squares per UV unit, sRGB in [0, 1].
+
+    Colour 0 where ``floor(n u) + floor(n v)`` is even (the square at the UV origin, the
+    image's bottom-left corner). Example: ``n = 2`` on 8 texels gives 4-texel squares.
+    """
+    check_frequency(frequency, size)
     u, v = texel_centers(size, size)
-    odd = (np.floor(u * frequency) + np.floor(v * frequency)).astype(np.int64) % 2 == 1
-    return np.where(odd[..., None], DARK, LIGHT)
+    parity = (np.floor(frequency * u) + np.floor(frequency * v)).astype(np.int64) % 2
+    return np.asarray(colors, np.float32)[parity]
 
 
-def uvgrid_image(size: int, frequency: float, line_texels: float = 1.5) -> np.ndarray:
-    """(size, size, 3) UV grid: red = u, green = v (orientation), dark lines every 1/frequency."""
+def uv_grid_image(frequency: float, size: int = 2048) -> np.ndarray:
+    """UV-grid texture ``(size, size, 3)`` sRGB: hue follows ``u``, brightness ``v``, dark cell edges.
+
+    Cells have the checker's size; the hue ramp (red at u = 0 through the spectrum) and the
+    lightness ramp in ``v`` make orientation and mirroring visible, the lines the cell edges.
+    """
+    check_frequency(frequency, size)
+    from matplotlib.colors import hsv_to_rgb
+
     u, v = texel_centers(size, size)
-    img = np.stack([0.25 + 0.7 * u, 0.25 + 0.7 * v, np.full_like(u, 0.6)], -1)
-    width = line_texels / size * frequency  # line width in grid-cell units
-    fu, fv = (u * frequency) % 1.0, (v * frequency) % 1.0
-    line = (np.minimum(fu, 1 - fu) < width / 2) | (np.minimum(fv, 1 - fv) < width / 2)
-    img[line] = 0.1
-    return img
+    iu, iv = np.floor(frequency * u), np.floor(frequency * v)
+    hue = (u * 0.8) % 1.0
+    value = 0.55 + 0.3 * v + 0.1 * ((iu + iv) % 2)
+    rgb = hsv_to_rgb(np.stack([hue, np.full_like(hue, 0.55), np.clip(value, 0, 1)], -1))
+    fu, fv = frequency * u - iu, frequency * v - iv
+    width = 0.06  # line half-width, in cells
+    edge = (fu < width) | (fu > 1 - width) | (fv < width) | (fv > 1 - width)
+    rgb[edge] = 0.1
+    return rgb.astype(np.float32)
 
 
 def dilate(image: np.ndarray, mask: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .charts import ChartGrids
-from .clip import clip_mesh, grid_faces
+from .clip import UV_COLUMNS, clip_mesh, grid_faces
 from .geometry import MeshProjector, sample_surface, triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 
@@ -67,7 +67,7 @@ class Piece(NamedTuple):
 
 def _clip_piece(piece: Piece, field: np.ndarray) -> tuple[Piece, np.ndarray]:
     """Clipped piece and, per output vertex, the input vertex it is (-1 for cut points)."""
-    c = clip_mesh(np.column_stack([piece.xyz, piece.uv]), piece.faces, field)
+    c = clip_mesh(np.column_stack([piece.xyz, piece.uv]), piece.faces, field, plane=UV_COLUMNS)
     return Piece(piece.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces), c.source_vertex
 
 

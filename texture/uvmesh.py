@@ -19,40 +19,22 @@ from pathlib import Path
 
 import numpy as np
 
+from mna.data import Normalization  # noqa: F401  (re-exported: one unit-ball frame for every stage)
+from mna.data import check_coordinates, check_file_format
 from mna.errors import InputError
 
 #: relative tolerance (of the bounding-box diagonal) below which two positions are one point.
 WELD_TOL = 1e-9
 
 
-@dataclass(frozen=True)
-class Normalization:
-    """``x_unit = (x_input - center) / scale``: the unit-ball frame of DESIGN's metrics."""
-
-    center: np.ndarray  # (3,)
-    scale: float
-
-    def apply(self, x: np.ndarray) -> np.ndarray:
-        return (np.asarray(x, np.float64) - self.center) / self.scale
-
-    def invert(self, x: np.ndarray) -> np.ndarray:
-        return np.asarray(x, np.float64) * self.scale + self.center
-
-    def to_json(self) -> dict:
-        return {"center": [float(c) for c in self.center], "scale": float(self.scale)}
-
-
 def unit_ball_normalization(points: np.ndarray) -> Normalization:
     """Centre = bounding-box centre, scale = max distance to it (so the max radius is 1).
 
     Example: the points ``(0,0,0)`` and ``(2,0,0)`` give ``center = (1,0,0)``, ``scale = 1``.
+    One implementation with the fit stage (:meth:`mna.data.Normalization.fit`): overflow-safe,
+    and a shape is degenerate relative to its own coordinates, not in absolute units.
     """
-    points = np.asarray(points, np.float64).reshape(-1, 3)
-    if len(points) == 0:
-        raise InputError("cannot normalise an empty point set")
-    center = 0.5 * (points.min(0) + points.max(0))
-    scale = float(np.linalg.norm(points - center, axis=1).max())
-    return Normalization(center, scale if scale > 0 else 1.0)
+    return Normalization.fit(points, "mesh")
 
 
 @dataclass(frozen=True)
@@ -150,12 +132,14 @@ def load_uv_mesh(path: str | os.PathLike, *, require_uv: bool = True):
     path = Path(path)
     if not path.is_file():
         raise InputError(f"mesh file not found: {path}")
+    check_file_format(path)
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types on unreadable files
         raise InputError(f"cannot read mesh {path}: {exc}") from exc
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise InputError(f"{path} holds no triangle faces")
+    check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)
     uv = getattr(mesh.visual, "uv", None)
     if uv is None or len(uv) != len(mesh.vertices):
         if require_uv:

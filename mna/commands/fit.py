@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 from pathlib import Path
 
 from mna.errors import MnaError
@@ -21,7 +22,11 @@ def register(subparsers) -> None:
     budget.add_argument("--steps", type=int, default=None, help="optimisation steps")
     budget.add_argument("--time-budget", type=float, default=None, metavar="SECONDS",
                         help="fit for this many seconds (the lr schedule follows elapsed time)")
-    p.add_argument("--resume", action="store_true", help="continue from RUN/checkpoint.pt with RUN/config.yaml")
+    again = p.add_mutually_exclusive_group()
+    again.add_argument("--resume", action="store_true", help="continue from RUN/checkpoint.pt with RUN/config.yaml")
+    again.add_argument("--overwrite", action="store_true",
+                       help="replace the run in RUN: first remove every file mna wrote there (a non-empty RUN "
+                            "is refused without --resume or --overwrite)")
     p.add_argument("--grid", type=int, default=None, help="UV grid resolution of the extracted chart meshes (default 256)")
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -90,9 +95,12 @@ def run_fit(args: argparse.Namespace) -> int:
         if Path(args.input).resolve() != Path(input_path).resolve():
             raise MnaError(f"--resume: INPUT {args.input} differs from the run's input {input_path}")
     cfg = build_config(args)
-    result = fit_run(args.input, args.out, cfg, resume=args.resume, progress_bar=not args.no_progress)
+    result = fit_run(args.input, args.out, cfg, resume=args.resume, progress_bar=not args.no_progress,
+                     overwrite=args.overwrite)
     if result.interrupted:
-        return 130
+        from mna.interrupt import exit_code
+
+        return exit_code(result.stop_signal or signal.SIGINT)
     m = result.metrics
     print(f"done: {result.steps} steps in {result.seconds:.0f} s; fscore_mesh {m['fscore_mesh']:.2f}, "
           f"chamfer_mesh {m['chamfer_mesh']:.2e}, distortion_metric {m['distortion_metric']:.3f}, "
@@ -101,11 +109,16 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_extract(args: argparse.Namespace) -> int:
+    from mna.config import MAX_GRID
     from mna.fit import resolve_device
     from mna.run import extract_run
 
     if not Path(args.run).is_dir():
         raise MnaError(f"run folder not found: {args.run}")
+    if args.points is not None and args.points < 1:
+        raise MnaError(f"--points must be positive, got {args.points}")
+    if args.grid is not None and not 2 <= args.grid <= MAX_GRID:
+        raise MnaError(f"--grid must be between 2 and {MAX_GRID}, got {args.grid}")
     m = extract_run(args.run, points=args.points, grid=args.grid, device=str(resolve_device(args.device)))
     print(f"extracted {m['points']} points and {m['mesh_faces']} chart faces; fscore_mesh {m['fscore_mesh']:.2f}, "
           f"distortion_metric {m['distortion_metric']:.3f} -> {args.run}")

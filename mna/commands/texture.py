@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from mna.errors import MnaError
@@ -77,14 +78,26 @@ def _int_arg(value: str, name: str, minimum: int) -> int:
     return v
 
 
+def _positive_float(value: float | None, name: str) -> float | None:
+    """None (the default) or a finite number > 0; 0 is refused, not read as "the default"."""
+    if value is None:
+        return None
+    if not (math.isfinite(value) and value > 0):
+        raise MnaError(f"{name} must be a positive, finite number, got {value}")
+    return value
+
+
 def run_export(args: argparse.Namespace) -> int:
     from texture.pipeline import export_run
     from texture.textures import check_size
 
+    square_size = _positive_float(args.square_size, "--square-size")
+    if args.max_islands < 0:
+        raise MnaError(f"--max-islands must be >= 0, got {args.max_islands}")
     size = check_size(args.size)
     padding = _int_arg(args.padding, "--padding", 0)
     relax = _int_arg(args.relax, "--relax", 0)
-    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size,
+    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=square_size,
                    max_islands=args.max_islands, relax=relax)
     a, m = r["atlas"], r["uv_metrics"]
     print(f"atlas: {a['islands']} islands from {a['charts_used']} charts, seam length {m['seam_length']:.2f}, "
@@ -122,22 +135,36 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 def run_uv_metrics(args: argparse.Namespace) -> int:
+    """The harness on one file, with the same reference and frame as ``mna compare`` when the
+    file belongs to a run (``RUN/mesh.obj``, ``RUN/xatlas/mesh.obj``), so the numbers agree."""
     import json
 
     import trimesh
 
-    from mna.atomic import write_json
+    from mna.atomic import strict_json, write_json
+    from texture.compare import harness_context, run_folder_of
     from texture.harness import measure
-    from texture.uvmesh import load_uv_mesh
+    from texture.uvmesh import load_uv_mesh, unit_ball_normalization
 
     mesh, _ = load_uv_mesh(args.mesh)
-    ref = None
+    run = run_folder_of(args.mesh)
     if args.reference:
         _, ref = load_uv_mesh(args.reference, require_uv=False)
         ref = trimesh.Trimesh(ref.vertices, ref.faces, process=False)
-    summary = measure(mesh, reference=ref).summary
+        kw = {"reference": ref, "normalization": unit_ball_normalization(ref.vertices[ref.faces.ravel()])}
+        described = f"{args.reference} (its unit ball)"
+    elif run is not None:
+        kw = harness_context(run)
+        described = (f"the input of run {run.name} (its unit ball)" if kw["reference"] is not None
+                     else f"none: run {run.name} has no input mesh, its surface is taken as closed")
+    else:
+        kw, described = {}, "none: the mesh's own open borders are the surface's boundary (its unit ball)"
+    summary = {"mesh": str(args.mesh), "reference": described, **measure(mesh, **kw).summary}
     if args.out:
+        if Path(args.out).is_dir():
+            raise MnaError(f"-o {args.out} is a folder; give the JSON file to write, e.g. {Path(args.out) / 'uv_metrics.json'}")
         write_json(args.out, summary)
     else:
-        print(json.dumps(summary, indent=2))
+        print(json.dumps(strict_json(summary), indent=2, allow_nan=False))
     return 0
+

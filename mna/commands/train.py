@@ -27,6 +27,7 @@ def register(subparsers) -> None:
     r.add_argument("--points", type=int, default=None, help="points in points.ply (default: the config's)")
     r.add_argument("--grid", type=int, default=None, help="UV grid resolution per chart (default: the config's)")
     r.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"])
+    r.add_argument("--overwrite", action="store_true", help="replace the run already in RUN (else RUN must be empty)")
     r.set_defaults(func=run_reconstruct)
 
     e = subparsers.add_parser("evaluate", help="the paper's metrics of a checkpoint over a dataset split",
@@ -66,7 +67,7 @@ def run_reconstruct(args: argparse.Namespace) -> int:
     if args.grid is not None and args.grid < 2:
         raise MnaError(f"--grid must be at least 2, got {args.grid}")
     m = reconstruct_run(args.checkpoint, args.input, args.out, reference=args.reference, device=args.device,
-                        points=args.points, grid=args.grid)
+                        points=args.points, grid=args.grid, overwrite=args.overwrite)
     print(f"reconstructed in {m['timings']['reconstruct']:.3f} s: fscore_mesh {m['fscore_mesh']:.2f}, "
           f"chamfer_mesh {m['chamfer_mesh']:.2e}, distortion_metric {m['distortion_metric']:.3f}, "
           f"occupancy {', '.join(f'{r:.0f}%' for r in m['occupancy_rate'])} -> {args.out}")

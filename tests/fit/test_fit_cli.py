@@ -51,12 +51,12 @@ def test_unreadable_file(capsys, tmp_path, out):
     _assert_untouched(out)
 
 
-@pytest.mark.parametrize("bad", [np.nan, np.inf])
-def test_nan_or_inf_coordinates(capsys, tmp_path, out, bad):
+@pytest.mark.parametrize("bad, needle", [(np.nan, "NaN coordinates"), (np.inf, "coordinates overflow")])
+def test_nan_or_inf_coordinates(capsys, tmp_path, out, bad, needle):
     pts = np.random.default_rng(0).normal(size=(100, 3))
     pts[5, 1] = bad
     np.save(tmp_path / "cloud.npy", pts)
-    _fails(capsys, ["fit", str(tmp_path / "cloud.npy"), "-o", str(out)], "NaN or infinite")
+    _fails(capsys, ["fit", str(tmp_path / "cloud.npy"), "-o", str(out)], needle)
     _assert_untouched(out)
 
 
@@ -80,7 +80,7 @@ def test_zero_extent(capsys, tmp_path, out):
 
 
 def test_zero_charts(capsys, sphere_file, out):
-    _fails(capsys, ["fit", sphere_file, "-o", str(out), "--charts", "0"], "--charts must be at least 1")
+    _fails(capsys, ["fit", sphere_file, "-o", str(out), "--charts", "0"], "--charts must be between 1 and 64")
     _assert_untouched(out)
 
 

@@ -72,7 +72,7 @@ def test_losses_gradcheck_float64():
     assert torch.autograd.gradcheck(lambda m: losses.reconstruction_loss(tgt, m), (matched,))
     labels = torch.tensor([1, 0, 1, 0, 0, 1], dtype=torch.bool)
     logits = torch.randn(6, dtype=torch.float64, requires_grad=True)
-    assert torch.autograd.gradcheck(lambda l: losses.occupancy_loss(l, labels), (logits,))
+    assert torch.autograd.gradcheck(lambda x: losses.occupancy_loss(x, labels), (logits,))
     jac = (torch.randn(5, 3, 2, dtype=torch.float64)).requires_grad_(True)
     assert torch.autograd.gradcheck(lambda j: losses.distortion_loss(j, 1e-4), (jac,))
 

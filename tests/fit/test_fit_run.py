@@ -114,13 +114,13 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_continues(torus_file, tmp_path):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
     assert "checkpoint saved" in out
-    step = torch.load(run / "checkpoint.pt", weights_only=False)["step"]
+    step = torch.load(run / "checkpoint.pt", weights_only=True)["step"]
     assert step >= 50 and not (run / "metrics.json").exists()
     res = subprocess.run(mna + ["fit", torus_file, "-o", str(run), "--resume", "--steps", str(step + 20),
                                 "--no-progress"], capture_output=True, text=True, env=env, timeout=120)
     assert res.returncode == 0, res.stderr
     assert f"resuming from step {step}" in res.stdout
-    assert torch.load(run / "checkpoint.pt", weights_only=False)["step"] == step + 20
+    assert torch.load(run / "checkpoint.pt", weights_only=True)["step"] == step + 20
     assert (run / "metrics.json").is_file()
 
 

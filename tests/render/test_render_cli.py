@@ -57,7 +57,7 @@ def test_figure_grid_and_pdf(rendered_run, tmp_path, capsys):
                      {"method": "xatlas", "charts": 7, "seam_length": 4.0, "distortion_metric": 0.02}]}))
     from render.figure import caption
 
-    assert caption(rendered_run, "xatlas") == "charts 7 · seam 4.00 · dist. 0.020"
+    assert caption(rendered_run, "xatlas") == "islands 7 · seam 4.00 · dist. 0.020"
     out = tmp_path / "fig.png"
     assert main(["figure", str(rendered_run), "-o", str(out), "--pdf", "--image", "heat_metric"]) == 0
     assert "(2 x 2 cells)" in capsys.readouterr().out  # rows mna, xatlas x views front, three_quarter
@@ -72,14 +72,64 @@ def test_figure_grid_and_pdf(rendered_run, tmp_path, capsys):
 def test_report_is_self_contained(rendered_run):
     from render.report import write_report
 
-    (rendered_run / "compare.md").write_text("| metric | mna | xatlas |\n|---|---|---|\n| charts | 1 | 7 |\n")
+    (rendered_run / "compare.json").write_text(json.dumps({"methods": [
+        {"method": "mna", "mesh": "reconstruction", "faces": 10, "charts": 1, "seam_length": 2.5},
+        {"method": "xatlas", "mesh": "reconstruction", "faces": 10, "charts": 7, "seam_length": 4.0}]}))
     (rendered_run / "mesh.glb").write_bytes(b"glTF")
     rep = write_report(rendered_run)
     md, page = rep.markdown.read_text(), rep.html.read_text()
-    assert "renders/figure.png" in md and "| charts | 1 | 7 |" in md and "[mesh.glb](mesh.glb)" in md
+    assert "renders/figure.png" in md and "| xatlas | reconstruction | 10 | 7 | 4.00 |" in md
+    assert "[mesh.glb](mesh.glb)" in md
     assert page.count("data:image/png;base64,") == md.count("![")
-    assert "<td>charts</td>" in page and 'href="mesh.glb"' in page
+    assert "<td>xatlas</td>" in page and 'href="mesh.glb"' in page
     assert "src=\"renders/" not in page  # images are inlined, not linked
+
+
+def test_report_reads_as_a_document_and_escapes_paths(rendered_run, tmp_path):
+    """One h1, sections as h2 (compare.md's own h1 is not pasted in), no internal names, and a
+    run folder named like a Markdown link to javascript: stays text."""
+    import shutil
+
+    from render.report import write_report
+
+    (rendered_run / "compare.md").write_text("# compare: x\n\nsee DESIGN\n")
+    evil = tmp_path / "[x](javascript:alert(1))"
+    shutil.copytree(rendered_run, evil, ignore=shutil.ignore_patterns("scene"))
+    page = write_report(evil).html.read_text()
+    assert page.count("<h1>") == 1 and "<h2>" in page
+    assert 'href="javascript' not in page.lower() and "javascript:alert(1)" in page  # shown, not live
+    for internal in ("DESIGN", "texture.harness", "tr g"):
+        assert internal not in page
+
+
+def test_report_fits_a_1280_px_window(rendered_run, tmp_path):
+    """Laid out by headless Chromium at 1280 px: nothing overflows the page sideways."""
+    import re
+    import shutil
+    import subprocess
+
+    from render.report import write_report
+
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("chromium is not installed (make setup installs it where apt-get works)")
+    (rendered_run / "compare.json").write_text(json.dumps({"methods": [
+        {"method": name, "mesh": "reconstruction", "faces": 123456, "charts": 4592, "seam_length": 1234.5,
+         "distortion_metric": 0.1, "distortion_conformal": 0.1, "distortion_area": 0.1,
+         "flipped_area_percent": 0.0, "mirrored_area_percent": 28.0, "folded_area_percent": 0.0,
+         "orientation_undecided_area_percent": 0.0, "uv_overlap_percent": 0.0, "utilization": 0.6,
+         "seconds": 123.4} for name in ("mna", "xatlas", "xatlas_input")]}))
+    page = write_report(rendered_run).html.read_text()
+    probe = tmp_path / "probe.html"
+    # the page's width, the window's, and how far the widest table scrolls inside its box
+    probe.write_text(page.replace("</body>", "<script>const t = [...document.querySelectorAll('div.table')]"
+                                  ".map(d => d.scrollWidth - d.clientWidth); document.body.setAttribute('data-w', "
+                                  "document.documentElement.scrollWidth + 'x' + "
+                                  "document.documentElement.clientWidth + 'x' + Math.max(0, ...t))</script></body>"))
+    out = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1280,900",
+                          "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    scroll, client, table = map(int, re.search(r'data-w="(\d+)x(\d+)x(\d+)"', out).groups())
+    assert scroll <= client <= 1280 and table == 0
 
 
 def test_report_from_a_relative_run_folder(rendered_run, monkeypatch):

@@ -11,7 +11,7 @@ from render.images import (box_downsample, linear_to_srgb, read_image, relative_
                            to_display, write_exr, write_png)
 from render.meshes import load_uv_mesh, unshare, vertex_normals, write_ply
 from render.mitsuba_scene import material_bitmap, material_procedural_checker, scene_dict, scene_xml
-from render.textures import checker_image, squares_per_uv_unit, uv_grid_image, uv_length_scale
+from texture.textures import checker_image, squares_per_uv_unit, uv_grid_image, uv_length_scale
 from scenes.cameras import bounding_sphere, camera_rig
 from scenes.presets import load_preset
 

@@ -96,6 +96,33 @@ def test_compare_tabulates_every_method(tmp_path, monkeypatch):
     assert ours["seam_length"] <= xa["seam_length"] + 1e-9  # xatlas cannot join our separate islands
     md = (run / "compare.md").read_text()
     assert "| mna | reconstruction |" in md and "xatlas sweep" in md
+    # uv-metrics on the run's own files reports what compare reports (one reference, one frame)
+    for method, path in (("mna", run / "mesh.obj"), ("xatlas", run / "xatlas" / "mesh.glb")):
+        assert main(["uv-metrics", str(path), "-o", str(tmp_path / f"{method}.json")]) == 0
+        alone = json.loads((tmp_path / f"{method}.json").read_text())
+        row = next(r for r in res["methods"] if r["method"] == method)
+        for key in ("charts", "seam_length", "surface_area", "distortion_metric", "folded_area_percent"):
+            assert alone[key] == pytest.approx(row[key], rel=1e-6, abs=1e-9), (method, key)
+
+
+def test_uv_metrics_writes_strict_json(tmp_path, capsys):
+    """UVs beyond [0, 1]^2 have no utilisation (NaN); JSON has no NaN: null, which strict parsers read."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    uv = np.array([[0, 0], [1, 0], [0, 1], [2, 2.0]])
+    path = tmp_path / "m.obj"
+    from texture.export import export_textured
+    from texture.textures import checker_image
+    from texture.uvmesh import make_uv_mesh
+
+    export_textured(tmp_path, make_uv_mesh(V, F, uv), checker_image(4.0, 64), stem="m")
+    assert main(["uv-metrics", str(path), "-o", str(tmp_path / "out.json")]) == 0
+    text = (tmp_path / "out.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text and json.loads(text)["utilization"] is None
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))
+    assert main(["uv-metrics", str(path), "-o", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a folder" in err and "/." not in err
 
 
 # ---- bad input: one line, exit 2, nothing written --------------------------------------------

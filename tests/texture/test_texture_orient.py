@@ -88,7 +88,10 @@ def test_fold_is_cut_at_the_crease_and_reoriented():
     cell = 2.0 / (G - 1)
     assert out.area().sum() == pytest.approx(2.6, abs=2 * cell)
     assert back.area().sum() == pytest.approx(1.4, abs=2 * cell)
-    assert out.area().sum() + back.area().sum() == pytest.approx(p.area().sum(), rel=1e-9)
+    # nothing lost or doubled: the halves tile the piece. Exactly (1e-9) before vertices near
+    # the cut snapped onto it (texture.clip); a vertex sliding along an edge across the crease
+    # bends its other faces, which changes their area at second order (2e-7 here)
+    assert out.area().sum() + back.area().sum() == pytest.approx(p.area().sum(), rel=1e-6)
     assert out.uv[:, 0].max() <= 0.3 + cell and back.uv[:, 0].max() <= -0.3 + cell  # mirrored: u -> -u
     # sub-triangles on the cut move to the side their normal agrees with: what is left folded
     # is rounding-size slivers (< 1e-6 of the area), not the half-cell strip along the crease

@@ -73,7 +73,8 @@ def test_similarity_fit_prefers_rotation_unless_clearly_mirrored():
     np.testing.assert_allclose(fit.translation, [3.0, 3.0])
 
 
-def _grid_island(G, half, offset=(0.0, 0.0)):
+def _centred_grid(G, half, offset=(0.0, 0.0)):
+    """A G x G vertex grid over [-half, half]^2 (+ offset)."""
     lin = np.linspace(-half, half, G)
     u, v = np.meshgrid(lin, lin, indexing="xy")
     return np.column_stack([u.ravel(), v.ravel()]) + offset, grid_faces(G)
@@ -83,15 +84,15 @@ def _awkward_islands():
     """A dominant island with a UV fold (flipped triangles), a rotated one, a degenerate
     (collinear) one and small ones, all over the same chart-local UV range."""
     parts = []
-    uv, f = _grid_island(12, 1.0)
+    uv, f = _centred_grid(12, 1.0)
     fold = uv[:, 0] > 0.6  # fold the right strip back over itself: flipped triangles
     uv[fold, 0] = 1.2 - uv[fold, 0]
     parts.append((uv, f))
-    uv, f = _grid_island(6, 0.4)
+    uv, f = _centred_grid(6, 0.4)
     parts.append((uv @ _rot(0.7).T, f))
     parts.append((np.array([[0.0, 0.0], [0.5, 0.5], [1.0, 1.0]]), np.array([[0, 1, 2]])))  # zero area
     for s in (0.15, 0.1):
-        parts.append(_grid_island(4, s))
+        parts.append(_centred_grid(4, s))
     uvs, faces, island, off = [], [], [], 0
     for i, (u, f) in enumerate(parts):
         uvs.append(u)
@@ -239,3 +240,26 @@ def test_whole_island_beside_outlines_keeps_its_fit_weights():
     pk = pack_islands(uv, faces, island, resolution=256, padding=2)
     assert pk.packer == "xatlas"
     assert_valid_packing(pk, uv, faces, island)
+
+
+def test_packed_islands_are_never_mirrored():
+    """xatlas's 90-degree turn is a transpose (a mirror): among many long islands it turns some.
+    The packing must keep every island's orientation (signed UV area keeps its sign)."""
+    rng = np.random.default_rng(3)
+    uvs, faces, island, off = [], [], [], 0
+    for k in range(14):
+        u, f = _centred_grid(5, 1.0)
+        u = u * [rng.uniform(1.5, 3.0), rng.uniform(0.3, 0.6)]  # long and thin: turning helps packing
+        u = u @ _rot(rng.uniform(0, np.pi)).T
+        uvs.append(u)
+        faces.append(f + off)
+        island.append(np.full(len(f), k))
+        off += len(u)
+    uv, faces, island = np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
+    isl = pack._Islands(uv, faces, island)
+    raw = pack.plan_packing(uv, faces, island, resolution=256, padding=2)
+    assert pack.mirrored_islands(isl, raw.uv), "the plan (turns allowed) mirrors some island"
+    packed = pack.pack_islands(uv, faces, island, resolution=256, padding=2)
+    assert pack.mirrored_islands(isl, packed.uv) == []
+    assert verify_packing(packed.uv, faces, island, 256)[0] == 0
+    assert packed.utilization > 0.3

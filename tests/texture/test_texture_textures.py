@@ -8,8 +8,8 @@ from texture_helpers import color_function
 
 from mna.errors import InputError
 from texture.export import export_textured, read_back
-from texture.textures import (bake, check_size, checker_frequency, checker_image, dilate, read_image,
-                              sample_bilinear, texel_centers, uv_per_length, uvgrid_image, write_image)
+from texture.textures import (bake, check_size, checker_image, dilate, read_image, sample_bilinear,
+                              squares_per_uv_unit, texel_centers, uv_grid_image, uv_length_scale, write_image)
 from texture.uvmesh import make_uv_mesh
 from texture.xatlas_uv import XatlasOptions, unwrap
 
@@ -29,14 +29,47 @@ def test_texel_centres_convention():
 def test_checker_frequency_matches_3d_square_size():
     V = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0.0]])
     m = make_uv_mesh(V, [[0, 1, 2], [0, 2, 3]], V[:, :2] / 8)  # 1 UV unit = 8 units of length
-    assert uv_per_length(m) == pytest.approx(1 / 8)
-    assert checker_frequency(m, 4096, square_size=0.01) == pytest.approx(12.5)  # 1/8 / 0.01
-    img = checker_image(64, 4.0)  # 16 texels per square
+    assert uv_length_scale(m.vertices, m.faces, m.uv) == pytest.approx(8.0)
+    # squares of side 0.05 on the surface: 8 / 0.05 = 160 per UV unit (not (1/8) / 0.05 = 2.5)
+    assert squares_per_uv_unit(m.vertices, m.faces, m.uv, square_size=0.05) == pytest.approx(160.0)
+    img = checker_image(4.0, 64)  # 16 texels per square
     assert img.shape == (64, 64, 3)
     assert (img[0, 0] == img[0, 15]).all() and not (img[0, 0] == img[0, 16]).all()
     assert (img[0, 0] == img[16, 16]).all()
-    g = uvgrid_image(64, 4.0)
+    g = uv_grid_image(4.0, 64)
     assert g[:, :, 0].std() > 0.1 and g.min() >= 0 and g.max() <= 1
+
+
+def _square_runs(row: np.ndarray) -> np.ndarray:
+    """Lengths (texels) of the runs of equal colour along an image row, ends excluded."""
+    change = np.flatnonzero(np.abs(np.diff(row, axis=0)).sum(1) > 0.1)
+    return np.diff(change)
+
+
+def test_exported_checker_squares_have_the_promised_3d_size(tmp_path):
+    """The texture written by an export, read back from the PNG: a square spans ``square_size``
+    of surface. The plane's UV scale is not 1 (1 UV unit = 2.8 units of length), so a units
+    inversion (squares per UV unit = (1/s) / L instead of s / L) shows as 2.8^2 = 7.8x squares."""
+    from texture.export import export_textured
+    from texture.pipeline import make_texture
+
+    side = 1.4  # a square plane inside the unit ball
+    V = np.array([[0, 0, 0], [side, 0, 0], [side, side, 0], [0, side, 0.0]]) - [side / 2, side / 2, 0]
+    uv = (V[:, :2] + side / 2) / side * 0.5 + 0.25  # occupies [0.25, 0.75]^2 of the texture
+    mesh = make_uv_mesh(V, [[0, 1, 2], [0, 2, 3]], uv)
+    size, square = 1024, 0.1
+    paths = export_textured(tmp_path, mesh, make_texture("checker", mesh, size, 8, square_size=square))
+    img = read_image(paths["texture"])
+    rows = img[int(0.3 * size):int(0.7 * size):37]
+    runs = np.concatenate([_square_runs(r) for r in rows])
+    texels_per_length = size * 0.5 / side  # the plane spans 0.5 UV = 512 texels over 1.4 units
+    square_texels = square * texels_per_length
+    assert np.median(runs) == pytest.approx(square_texels, abs=1.0)
+
+
+def test_checker_too_fine_for_the_texture_is_refused():
+    with pytest.raises(InputError, match="texels"):
+        checker_image(300.0, 1024)
 
 
 def test_dilate_fills_gutter_rings():
@@ -122,7 +155,7 @@ def test_check_size_accepts():
 @pytest.mark.parametrize("kind", ["obj", "glb"])
 def test_export_round_trip(tmp_path, sphere_atlas, kind):
     mesh = make_uv_mesh(sphere_atlas.vertices * 3 + [1, 2, 3], sphere_atlas.faces, sphere_atlas.uv)
-    paths = export_textured(tmp_path, mesh, checker_image(32, 4))
+    paths = export_textured(tmp_path, mesh, checker_image(4.0, 32))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mesh.glb", "mesh.mtl", "mesh.obj", "mesh_texture.png"]
     back = read_back(paths[kind])
     assert back.faces.shape == mesh.faces.shape

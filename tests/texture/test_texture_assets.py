@@ -1,0 +1,198 @@
+"""Exported assets as viewers read them: material, normals, precision, winding, slivers, the validator."""
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+
+from texture import gltf_validator
+from texture.atlas import _unmirrored
+from texture.clip import SNAP_FRACTION, clip_mesh, grid_faces
+from texture.export import ROUGHNESS, export_textured, read_back
+from texture.harness import measure
+from texture.normals import shading_normals
+from texture.textures import checker_image
+from texture.trim import Piece
+from texture.uvmesh import make_uv_mesh, weld_ids
+from texture.xatlas_uv import XatlasOptions, unwrap
+
+
+def glb_json(path) -> dict:
+    """The JSON chunk of a GLB file (glTF 2.0 binary container)."""
+    data = open(path, "rb").read()
+    length, kind = struct.unpack_from("<I4s", data, 12)
+    assert kind == b"JSON"
+    return json.loads(data[20:20 + length])
+
+
+def glb_attribute(path, name: str) -> np.ndarray:
+    """The raw ``name`` attribute (e.g. NORMAL) of the GLB's first primitive, as stored."""
+    data = open(path, "rb").read()
+    length = struct.unpack_from("<I", data, 12)[0]
+    doc, base = json.loads(data[20:20 + length]), 20 + length + 8
+    a = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"][name]]
+    view = doc["bufferViews"][a["bufferView"]]
+    width = {"VEC3": 3, "VEC2": 2}[a["type"]]
+    offset = base + view.get("byteOffset", 0) + a.get("byteOffset", 0)
+    return np.frombuffer(data, np.float32, a["count"] * width, offset).reshape(-1, width).astype(np.float64)
+
+
+def _xatlas(mesh: trimesh.Trimesh):
+    return unwrap(mesh.vertices, mesh.faces, XatlasOptions(resolution=256, padding=4)).mesh
+
+
+@pytest.fixture(scope="module")
+def sphere_export(tmp_path_factory, icosphere):
+    folder = tmp_path_factory.mktemp("sphere_export")
+    mesh = _xatlas(icosphere)
+    return mesh, export_textured(folder, mesh, checker_image(8.0, 256))
+
+
+def test_glb_material_is_matte_plastic_and_single_sided_when_closed(sphere_export):
+    _, paths = sphere_export
+    (mat,) = glb_json(paths["glb"])["materials"]
+    pbr = mat["pbrMetallicRoughness"]
+    assert pbr["metallicFactor"] == 0.0  # glTF's default is 1 (a metal)
+    assert pbr["roughnessFactor"] == pytest.approx(ROUGHNESS)
+    assert "baseColorTexture" in pbr
+    assert mat.get("doubleSided", False) is False  # closed: back faces are never seen
+    mtl = open(paths["mtl"]).read()
+    assert "Pm 0.0" in mtl and "Ks 0.0 0.0 0.0" in mtl
+
+
+def test_open_surface_is_double_sided(tmp_path):
+    grid = trimesh.creation.box()  # cut the box open: drop its two top triangles
+    top = np.flatnonzero(grid.face_normals[:, 2] > 0.9)
+    opened = trimesh.Trimesh(grid.vertices, np.delete(grid.faces, top, 0), process=False)
+    paths = export_textured(tmp_path, _xatlas(opened), checker_image(8.0, 256))
+    (mat,) = glb_json(paths["glb"])["materials"]
+    assert mat["doubleSided"] is True
+
+
+def test_smooth_normals_on_a_sphere_shared_across_seams(sphere_export, icosphere):
+    mesh, paths = sphere_export
+    glb = trimesh.load(paths["glb"], force="mesh", process=False)
+    n = glb_attribute(paths["glb"], "NORMAL")  # as stored (trimesh recomputes its own on access)
+    np.testing.assert_allclose(glb_attribute(paths["glb"], "POSITION"), glb.vertices)
+    radial = glb.vertices / np.linalg.norm(glb.vertices, axis=1, keepdims=True)
+    # an icosphere's vertex normal is its radial direction (by symmetry), to the facet error
+    assert np.degrees(np.arccos(np.clip((n * radial).sum(1), -1, 1))).max() < 2.0
+    assert len(glb.vertices) == len(mesh.vertices)  # no crease: no vertex added
+    ids = weld_ids(glb.vertices)  # seam copies (same point, other UVs) share one normal
+    for i in np.flatnonzero(np.bincount(ids) > 1)[:50]:
+        same = n[ids == i]
+        assert np.abs(same - same[0]).max() < 1e-6
+    obj = open(paths["obj"]).read()
+    assert obj.count("\nvn ") == len(mesh.vertices) and "/" in obj.split("\nf ")[1]
+
+
+def test_cube_keeps_its_edges_sharp():
+    box = trimesh.creation.box(extents=(2.0, 3.0, 5.0))
+    weld = weld_ids(box.vertices)
+    s = shading_normals(box.vertices, box.faces, weld)
+    assert len(s.source) == 24  # 8 corners x 3 faces meeting at 90 degrees
+    face_n = box.face_normals[:, None, :]
+    np.testing.assert_allclose(s.normals[s.faces], np.repeat(face_n, 3, 1), atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-30, 1e-9, 1.0, 1e200])
+def test_obj_and_glb_keep_coordinates_at_any_scale(tmp_path, scale):
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    mesh = _xatlas(box)
+    mesh = make_uv_mesh(mesh.vertices * scale, mesh.faces, mesh.uv)
+    if scale > 1e38:  # float32 (the GLB) cannot hold it: the writer must refuse, not write inf
+        with pytest.raises(ValueError, match="float32"):
+            export_textured(tmp_path, mesh, checker_image(8.0, 256))
+        return
+    paths = export_textured(tmp_path, mesh, checker_image(8.0, 256))
+    for kind in ("obj", "glb"):
+        back = read_back(paths[kind])
+        order = np.lexsort(back.vertices.T)
+        want = mesh.vertices[np.lexsort(mesh.vertices.T)]
+        np.testing.assert_allclose(back.vertices[order], want, rtol=1e-7, atol=0)
+
+
+def test_obj_and_glb_measure_the_same(sphere_export):
+    _, paths = sphere_export
+    a = measure(read_back(paths["obj"])).summary
+    b = measure(read_back(paths["glb"])).summary
+    for key in ("charts", "flipped_faces", "mirrored_islands", "degenerate_uv_faces"):
+        assert a[key] == b[key], key
+    # the same float32 numbers: the OBJ's 9 digits parse to within 1e-9 of them
+    for key in ("seam_length", "distortion_metric", "distortion_conformal", "mirrored_area_percent",
+                "uv_overlap_percent", "utilization", "surface_area"):
+        assert a[key] == pytest.approx(b[key], rel=1e-6, abs=1e-9), key
+
+
+def test_glb_passes_the_khronos_validator(sphere_export):
+    reason = gltf_validator.available()
+    if reason:
+        pytest.skip(reason)
+    _, paths = sphere_export
+    report = gltf_validator.validate(paths["glb"])
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+
+
+def _two_islands(mirror_second: bool):
+    """Two unit squares side by side in 3D (z up, wound counter-clockwise from +z), separate in UV."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0.0]])
+    F = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    uv = V[:, :2] * 0.4 + [0.05, 0.05]
+    uv[4:] += [0.1, 0.0]
+    if mirror_second:
+        uv[4:, 0] = 1.0 - uv[4:, 0]
+    return V, F, uv
+
+
+def test_harness_reports_mirrored_area():
+    V, F, uv = _two_islands(mirror_second=True)
+    s = measure(make_uv_mesh(V, F, uv)).summary
+    assert s["mirrored_area_percent"] == pytest.approx(50.0)
+    assert s["mirrored_islands"] == 1 and s["flipped_faces"] == 0  # consistent within each island
+    V, F, uv = _two_islands(mirror_second=False)
+    assert measure(make_uv_mesh(V, F, uv)).summary["mirrored_area_percent"] == 0.0
+
+
+def test_atlas_reflects_mirrored_islands():
+    V, F, uv = _two_islands(mirror_second=True)
+    out = _unmirrored(Piece(0, V.astype(float), uv, F))
+    t = out.uv[out.faces]
+    signed = (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
+    assert (signed > 0).all()
+    np.testing.assert_allclose(out.xyz[out.faces], V[F])  # 3D and winding untouched
+    # lengths in UV unchanged (a reflection): still an isometry up to the 0.4 scale
+    e = np.linalg.norm(t[:, 1] - t[:, 0], axis=1)
+    np.testing.assert_allclose(e, 0.4 * np.linalg.norm(V[F][:, 1] - V[F][:, 0], axis=1))
+
+
+def test_clip_near_vertices_leaves_no_slivers():
+    """An iso-line passing 0.1 % of a cell from grid vertices: plain marching triangles leave
+    triangles of ~1e-3 of a face; snapping keeps every triangle at >= SNAP_FRACTION^2 / 4 of one
+    and the kept region exact (the field is linear, so the snapped vertices lie on its line)."""
+    G = 11
+    lin = np.linspace(0, 1, G)
+    x, y = np.meshgrid(lin, lin, indexing="xy")
+    P = np.column_stack([x.ravel(), y.ravel()])
+    h = 1.0 / (G - 1)
+    field = (0.5 + 0.001 * h) - P[:, 0]  # kept: x < 0.5 + 0.001 h, just past a column of vertices
+    face = 0.5 * h * h
+    plain = clip_mesh(P, grid_faces(G), field)
+    t = plain.attrs[plain.faces]
+    a_plain = 0.5 * np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+                           - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+    assert a_plain.min() < 0.01 * face  # the slivers this guards against
+    snapped = clip_mesh(P, grid_faces(G), field, plane=(0, 1))
+    t = snapped.attrs[snapped.faces]
+    a = 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+    assert (a > 0).all() and a.min() >= SNAP_FRACTION ** 2 / 4 * face
+    assert a.sum() == pytest.approx(0.5 + 0.001 * h, abs=1e-12)
+    on_line = snapped.attrs[snapped.field == 0]
+    np.testing.assert_allclose(on_line[:, 0], 0.5 + 0.001 * h, atol=1e-12)
+    # clipping the other side with the same rule gives the same border: the halves tile the square
+    other = clip_mesh(P, grid_faces(G), -field, plane=(0, 1))
+    t = other.attrs[other.faces]
+    b = 0.5 * ((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0]))
+    assert a.sum() + b.sum() == pytest.approx(1.0, abs=1e-12)
