@@ -26,6 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"])
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     p.add_argument("--run", default=None, metavar="RUN", help="reuse this run's charts (RUN/charts.npz) instead of fitting")
+    p.add_argument("--overwrite", action="store_true",
+                   help="fit into OUT even if it holds an earlier run (replaced; same rule as `mna fit`)")
     p.add_argument("--texture", default="checker", choices=["checker", "uvgrid", "bake"],
                    help="checker (default), uvgrid, or bake the input mesh's colours/texture")
     p.add_argument("--size", default="2048", help="texture size in texels (default 2048)")
@@ -40,6 +42,7 @@ def _fit_args(args: argparse.Namespace) -> argparse.Namespace:
     return argparse.Namespace(
         resume=False, config=None, preset=args.preset, charts=args.charts, seed=args.seed, device=args.device,
         steps=args.steps, time_budget=args.time_budget, threads=args.threads, grid=None, out=args.out,
+        overwrite=args.overwrite,
         no_reformulation=False, naive_classifier=False, no_pe=False, no_distortion=False, atlasnet=False)
 
 
@@ -51,8 +54,8 @@ def run_unwrap(args: argparse.Namespace) -> int:
     inp = load_unwrap_input(args.mesh)
     check_options(args.texture, args.size, args.padding)
     if args.run is not None:
-        if any(v is not None for v in (args.charts, args.steps, args.time_budget, args.seed)):
-            raise MnaError("--run reuses a fit: --charts, --steps, --time-budget and --seed do not apply")
+        if any(v is not None for v in (args.charts, args.steps, args.time_budget, args.seed)) or args.overwrite:
+            raise MnaError("--run reuses a fit: --charts, --steps, --time-budget, --seed and --overwrite do not apply")
         if not Path(args.run).is_dir():
             raise MnaError(f"--run: run folder not found: {args.run}")
         load_charts(Path(args.run) / "charts.npz")
@@ -63,7 +66,7 @@ def run_unwrap(args: argparse.Namespace) -> int:
         from mna.run import fit_run
 
         cfg = build_config(_fit_args(args))
-        result = fit_run(args.mesh, args.out, cfg, progress_bar=not args.no_progress)
+        result = fit_run(args.mesh, args.out, cfg, progress_bar=not args.no_progress, overwrite=args.overwrite)
         if result.interrupted:
             return 130
         run = args.out

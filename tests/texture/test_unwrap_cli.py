@@ -104,3 +104,16 @@ def test_unwrap_fits_when_no_run_is_given(tmp_path):
     np.testing.assert_array_equal(back.faces.shape, loaded.faces.shape)
     np.testing.assert_allclose(back.vertices[back.faces], loaded.vertices[loaded.faces], atol=1e-6)
     assert info["uv_metrics"]["flipped_faces"] == 0 and info["uv_metrics"]["uv_overlap_percent"] == 0.0
+
+
+def test_unwrap_refuses_a_non_empty_out_without_overwrite(tmp_path, capsys):
+    """The fit path follows `mna fit`'s run-folder rule (refuse a non-empty OUT; --overwrite)."""
+    mesh = tmp_path / "sphere.obj"
+    shapes.sphere(subdivisions=1).export(mesh)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "config.yaml").write_text("input: elsewhere.obj\n")
+    args = ["unwrap", str(mesh), "-o", str(out), "--preset", "tiny", "--steps", "10", "--no-progress", *SMALL]
+    assert main(args) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert main([*args, "--overwrite"]) == 0 and (out / "unwrap.json").is_file()
