@@ -36,6 +36,8 @@ NEAR_TOL = 0.01
 FAR_TOL = 0.02
 #: closest points are exact within this distance (nearest grid vertex beyond; > FAR_TOL + NEAR_TOL).
 PROJECT_TOL = 0.05
+#: above this many samples (4 per face), one sample per face (the centroid).
+MAX_SAMPLES = 200_000
 #: chart surfaces for labelling use at most this many grid lines per side.
 MAX_GRID = 128
 
@@ -95,16 +97,22 @@ class Assignment:
     stats: dict
 
 
-def face_samples(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F, S, 3) sample points of each face (``SAMPLES_BARY``)."""
-    return np.einsum("sc,fcd->fsd", SAMPLES_BARY, vertices[faces])
+def face_samples(vertices: np.ndarray, faces: np.ndarray, bary: np.ndarray = SAMPLES_BARY) -> np.ndarray:
+    """(F, S, 3) sample points of each face (barycentric rows ``bary (S, 3)``)."""
+    return np.einsum("sc,fcd->fsd", bary, vertices[faces])
 
 
 def assign_faces(vertices: np.ndarray, faces: np.ndarray, surfaces: list[ChartSurface],
-                 near_tol: float = NEAR_TOL, far_tol: float = FAR_TOL) -> Assignment:
-    """Label each face of ``(vertices (V,3) unit frame, faces (F,3))``; see the module docstring."""
-    F, S, K = len(faces), len(SAMPLES_BARY), len(surfaces)
-    pts = face_samples(vertices, faces).reshape(-1, 3)
+                 near_tol: float = NEAR_TOL, far_tol: float = FAR_TOL,
+                 max_samples: int = MAX_SAMPLES) -> Assignment:
+    """Label each face of ``(vertices (V,3) unit frame, faces (F,3))``; see the module docstring.
+
+    Meshes with more than ``max_samples / 4`` faces get one sample per face (the centroid):
+    their faces are small next to the charts' features, and neighbours vote alike.
+    """
+    bary = SAMPLES_BARY if len(faces) * len(SAMPLES_BARY) <= max_samples else SAMPLES_BARY[:1]
+    F, S, K = len(faces), len(bary), len(surfaces)
+    pts = face_samples(vertices, faces, bary).reshape(-1, 3)
     dist = np.full((len(pts), K), np.inf)
     depth = np.zeros((len(pts), K))
     for k, s in enumerate(surfaces):
