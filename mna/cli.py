@@ -25,6 +25,7 @@ from mna.interrupt import Terminated, exit_code, on_sigterm_raise
 COMMAND_MODULES = (
     "mna.commands.fit",
     "mna.commands.texture",
+    "mna.commands.unwrap",
     "mna.commands.render",
     "mna.commands.train",
     "mna.commands.demo",

@@ -1,0 +1,82 @@
+"""``mna unwrap MESH -o OUT``: neural-chart UVs on the user's own mesh (texture.unwrap)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from mna.errors import MnaError
+
+
+def register(subparsers) -> None:
+    """Add ``unwrap`` to the `mna` parser."""
+    p = subparsers.add_parser(
+        "unwrap", help="UV-map your own mesh with a fitted neural atlas (same faces, same order)",
+        description="Fit a neural atlas to MESH into the run folder OUT (or reuse --run RUN), then UV-map MESH itself: "
+                    "its faces in their order, vertices duplicated only along seams. Writes OUT/mesh.obj, mesh.mtl, "
+                    "mesh_texture.png, mesh.glb and OUT/unwrap.json (input coordinate frame). "
+                    "`mna compare OUT` then compares with xatlas on the same mesh.")
+    p.add_argument("mesh", metavar="MESH", help="triangle mesh (.obj .ply .off .stl .glb)")
+    p.add_argument("-o", "--out", required=True, metavar="OUT", help="output (and run) folder")
+    p.add_argument("--charts", type=int, default=None, help="number of charts K (default 3)")
+    p.add_argument("--preset", default="fast", choices=["fast", "paper", "tiny"], help="fit preset (default fast)")
+    budget = p.add_mutually_exclusive_group()
+    budget.add_argument("--steps", type=int, default=None, help="optimisation steps of the fit")
+    budget.add_argument("--time-budget", type=float, default=None, metavar="SECONDS", help="fit for this many seconds")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"])
+    p.add_argument("--threads", type=int, default=None, help="torch CPU threads")
+    p.add_argument("--run", default=None, metavar="RUN", help="reuse this run's charts (RUN/charts.npz) instead of fitting")
+    p.add_argument("--overwrite", action="store_true",
+                   help="fit into OUT even if it holds an earlier run (replaced; same rule as `mna fit`)")
+    p.add_argument("--texture", default="checker", choices=["checker", "uvgrid", "bake"],
+                   help="checker (default), uvgrid, or bake the input mesh's colours/texture")
+    p.add_argument("--size", default="2048", help="texture size in texels (default 2048)")
+    p.add_argument("--padding", default="8", help="gutter around each island in texels (default 8)")
+    p.add_argument("--square-size", type=float, default=None, help="checker square size, unit-ball frame (default 0.1)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_unwrap)
+
+
+def _fit_args(args: argparse.Namespace) -> argparse.Namespace:
+    """The ``mna fit`` arguments this unwrap implies (same config rules as ``mna fit``)."""
+    return argparse.Namespace(
+        resume=False, config=None, preset=args.preset, charts=args.charts, seed=args.seed, device=args.device,
+        steps=args.steps, time_budget=args.time_budget, threads=args.threads, grid=None, out=args.out,
+        overwrite=args.overwrite,
+        no_reformulation=False, naive_classifier=False, no_pe=False, no_distortion=False, atlasnet=False)
+
+
+def run_unwrap(args: argparse.Namespace) -> int:
+    from texture.charts import load_charts
+    from texture.unwrap_run import check_options, load_unwrap_input, unwrap_to_folder
+
+    # everything is validated before anything is written
+    inp = load_unwrap_input(args.mesh)
+    check_options(args.texture, args.size, args.padding)
+    if args.run is not None:
+        if any(v is not None for v in (args.charts, args.steps, args.time_budget, args.seed)) or args.overwrite:
+            raise MnaError("--run reuses a fit: --charts, --steps, --time-budget, --seed and --overwrite do not apply")
+        if not Path(args.run).is_dir():
+            raise MnaError(f"--run: run folder not found: {args.run}")
+        load_charts(Path(args.run) / "charts.npz")
+        run = args.run
+        fit_info = {"fit": "reused", "fit_run": str(Path(args.run).resolve())}
+    else:
+        from mna.commands.fit import build_config
+        from mna.run import fit_run
+
+        cfg = build_config(_fit_args(args))
+        result = fit_run(args.mesh, args.out, cfg, progress_bar=not args.no_progress, overwrite=args.overwrite)
+        if result.interrupted:
+            return 130
+        run = args.out
+        fit_info = {"fit": "fitted", "fit_steps": result.steps, "fit_seconds": result.seconds,
+                    "fit_fscore_mesh": result.metrics["fscore_mesh"]}
+    doc = unwrap_to_folder(inp, run, args.out, texture=args.texture, size=args.size, padding=args.padding,
+                           square_size=args.square_size, extra=fit_info)
+    m = doc["uv_metrics"]
+    print(f"unwrap: {doc['islands']} islands, seam length {m['seam_length']:.2f}, distortion_metric "
+          f"{m['distortion_metric']:.3f}, flipped {m['flipped_faces']}, overlap {m['uv_overlap_percent']:.2f} %, "
+          f"utilization {m['utilization']:.2f}, fallback area {doc['assignment']['fallback_area_fraction']:.3f}, "
+          f"{doc['timings']['unwrap_total']:.1f} s -> {Path(args.out) / 'mesh.obj'}, mesh.glb")
+    return 0

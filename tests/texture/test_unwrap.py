@@ -1,0 +1,263 @@
+"""texture.unwrap: the user's own faces, in order, UV-mapped by chart segmentation + Tutte + SLIM.
+
+Charts are built in closed form (an exact cylinder chart, the two sphere caps of
+texture_helpers, or one chart far from the surface, which makes every face a fallback
+face), so no fit runs here; tests/texture/test_unwrap_cli.py runs a tiny fit end to end.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from mna import shapes
+from texture.charts import ChartGrids
+from texture.flatten import boundary_loop_count, euler_characteristic, signed_uv_areas
+from texture.harness import measure
+from texture.meshprep import prepare_mesh
+from texture.regions import clean_labels, face_adjacency, regions
+from texture.unwrap import UnwrapConfig, unwrap_mesh
+from texture.uvmesh import unit_ball_normalization
+from texture_helpers import sphere_charts, SCALE, CENTER
+from texture.uvmesh import Normalization
+
+FAST = UnwrapConfig(resolution=512, padding=2, slim_iterations=100)
+
+
+def cylinder(radius=0.5, height=1.0, sections=48, rows=12) -> trimesh.Trimesh:
+    """Open cylinder (no caps): developable, area ``2 pi r h``."""
+    a = np.linspace(0, 2 * np.pi, sections, endpoint=False)
+    z = np.linspace(0, height, rows + 1)
+    A, Z = np.meshgrid(a, z, indexing="xy")
+    v = np.stack([radius * np.cos(A), radius * np.sin(A), Z], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(rows), np.arange(sections), indexing="ij")
+    p = (i * sections + j).ravel()
+    q = (i * sections + (j + 1) % sections).ravel()
+    f = np.concatenate([np.stack([p, q, q + sections], 1), np.stack([p, q + sections, p + sections], 1)])
+    return trimesh.Trimesh(v, f, process=False)
+
+
+def chart_from_function(fn, norm, G=64) -> ChartGrids:
+    """One chart ``xyz = fn(u, v)`` over ``[-1, 1]^2``, all in domain."""
+    lin = np.linspace(-1, 1, G)
+    u, v = np.meshgrid(lin, lin, indexing="xy")
+    return ChartGrids(np.stack([u, v], -1)[None], fn(u, v)[None], np.ones((1, G, G)), 0.5, norm)
+
+
+def far_chart(mesh: trimesh.Trimesh, G=8) -> ChartGrids:
+    """A small flat chart 10 radii away: no face is reached (all faces take the fallback)."""
+    norm = unit_ball_normalization(mesh.vertices)
+    return chart_from_function(lambda u, v: norm.invert(np.stack([u * 0.1 + 10, v * 0.1, 0 * u], -1).reshape(-1, 3))
+                               .reshape(G, G, 3), norm, G)
+
+
+def cylinder_chart(mesh, radius=0.5, height=1.0) -> ChartGrids:
+    norm = unit_ball_normalization(mesh.vertices)
+    return chart_from_function(lambda u, v: np.stack([radius * np.cos(np.pi * (u + 1)), radius * np.sin(np.pi * (u + 1)),
+                                                      height * (v + 1) / 2], -1), norm)
+
+
+def check_faithful(mesh: trimesh.Trimesh, res) -> None:
+    """Same faces, same order, same 3D corners; UVs finite and inside the unit square."""
+    out = res.mesh
+    assert out.faces.shape == mesh.faces.shape
+    np.testing.assert_array_equal(out.vertices[out.faces], np.asarray(mesh.vertices)[mesh.faces])
+    assert np.isfinite(out.uv).all() and out.uv.min() >= 0 and out.uv.max() <= 1
+
+
+def island_topology(res) -> list[tuple[int, int]]:
+    """(Euler characteristic, boundary loops) of every UV island."""
+    out = []
+    for k in range(int(res.island.max()) + 1):
+        f = res.mesh.faces[res.island == k]
+        out.append((euler_characteristic(f), boundary_loop_count(f)))
+    return out
+
+
+def test_cylinder_unwraps_isometrically_with_one_straight_seam():
+    mesh = cylinder()
+    res = unwrap_mesh(mesh.vertices, mesh.faces, cylinder_chart(mesh), FAST)
+    check_faithful(mesh, res)
+    m = measure(res.mesh, reference=mesh).summary
+    assert res.stats["islands"] == 1 and m["charts"] == 1
+    # developable: an isometry exists, so the metric distortion (0 for an isometry) is ~0
+    assert m["distortion_metric"] < 2e-3
+    assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    # one cut from rim to rim, of length >= h; its ends may wander a little around the cylinder
+    h_norm = 1.0 / np.sqrt(2 * np.pi * 0.5 * 1.0)
+    assert h_norm - 1e-9 <= m["seam_length"] <= 1.5 * h_norm
+    assert res.stats["assignment"]["fallback_area_fraction"] == 0.0
+
+
+@pytest.mark.parametrize("name", ["torus", "genus2"])
+def test_torus_and_genus2_become_disks_without_flips(name):
+    mesh = shapes.torus(sections=40, ring=16) if name == "torus" else shapes.genus2(resolution=40)
+    res = unwrap_mesh(mesh.vertices, mesh.faces, far_chart(mesh), FAST)
+    check_faithful(mesh, res)
+    assert all(t == (1, 1) for t in island_topology(res))
+    areas = signed_uv_areas(res.mesh.uv, res.mesh.faces)
+    assert (areas > 0).all()  # counter-clockwise in UV like the input's winding: no flip, no mirror
+    m = measure(res.mesh, reference=mesh).summary
+    assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    assert res.stats["assignment"]["fallback_area_fraction"] == pytest.approx(1.0)
+
+
+def test_many_components_each_get_islands_and_fallback_is_counted():
+    parts = []
+    for k in range(6):
+        s = shapes.sphere(radius=0.3, subdivisions=2)
+        s.apply_translation([k * 1.0, 0, 0])
+        parts.append(s)
+    mesh = trimesh.util.concatenate(parts)
+    norm = unit_ball_normalization(mesh.vertices)
+    # one chart: a sphere of radius 0.3 around the first part (exactly on it)
+    def first_sphere(u, v):
+        th, ph = np.pi * (v + 1) / 2, np.pi * (u + 1)
+        return np.stack([0.3 * np.sin(th) * np.cos(ph), 0.3 * np.sin(th) * np.sin(ph), 0.3 * np.cos(th)], -1)
+    charts = chart_from_function(first_sphere, norm)
+    res = unwrap_mesh(mesh.vertices, mesh.faces, charts, FAST)
+    check_faithful(mesh, res)
+    comp = np.repeat(np.arange(6), len(parts[0].faces))
+    for k in range(6):  # every component is covered, and no island spans two components
+        isl = np.unique(res.island[comp == k])
+        assert len(isl) >= 1 and not np.isin(isl, res.island[comp != k]).any()
+    a = res.stats["assignment"]
+    assert a["fallback_components"] == 5
+    assert a["fallback_area_fraction"] == pytest.approx(5 / 6, abs=1e-9)
+    assert all(t == (1, 1) for t in island_topology(res))
+
+
+def test_sphere_caps_assign_by_cap_and_seams_only_where_islands_meet():
+    uv, xyz, occ = sphere_charts(48)
+    charts = ChartGrids(uv, xyz, occ, 0.5, Normalization(CENTER, SCALE))
+    mesh = shapes.sphere(radius=1.0, subdivisions=3)
+    mesh.apply_scale(SCALE)
+    mesh.apply_translation(CENTER)
+    res = unwrap_mesh(mesh.vertices, mesh.faces, charts, FAST)
+    check_faithful(mesh, res)
+    # an input vertex is duplicated only where its copies get different UVs (a seam: island
+    # borders, or a cut inside an island), never two copies with one UV
+    src = np.zeros(len(res.mesh.vertices), np.int64)
+    src[res.mesh.faces.ravel()] = mesh.faces.ravel()
+    key = np.column_stack([src, res.mesh.uv])
+    assert len(np.unique(key, axis=0)) == len(res.mesh.vertices)
+    # and the islands the unwrap reports are the UV-connected islands
+    assert measure(res.mesh).summary["charts"] == res.stats["islands"]
+    # the caps decide: faces well inside one cap only (|z| > 0.5 in the unit frame) keep its chart
+    m = measure(res.mesh, reference=mesh).summary
+    assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    assert res.stats["islands"] <= 4 and m["distortion_metric"] < 0.15
+
+
+def test_nonmanifold_duplicated_and_degenerate_input_keep_every_face():
+    sheet = shapes.sheet(size=1.0, resolution=12)
+    v = np.asarray(sheet.vertices, np.float64)
+    f = np.asarray(sheet.faces, np.int64)
+    n = len(v)
+    # a fin on the interior diagonal (13, 26): that edge is used three times
+    v = np.vstack([v, [[0.15, 0.15, 0.4]], v[[5]]])  # new apex, and a duplicate of vertex 5
+    first = int(np.flatnonzero((f == 5).any(1))[0])
+    f[first][f[first] == 5] = n + 1  # one face uses the duplicate: welded back
+    f = np.vstack([f, [[13, 26, n]],
+                   [[3, 3, 4]],  # repeated index
+                   [[0, 1, 2]]])  # collinear: zero area (row 0 of the grid)
+    prep = prepare_mesh(v, f)
+    assert prep.stats["nonmanifold_edges"] == 1
+    assert prep.stats["welded_vertices"] == 1
+    assert prep.stats["degenerate_faces"] == 2
+    mesh = trimesh.Trimesh(v, f, process=False)
+    res = unwrap_mesh(v, f, far_chart(mesh), FAST)
+    check_faithful(mesh, res)
+    out = res.mesh
+    assert len(np.unique(out.faces[-2])) == 3  # the repeated index gets distinct copies
+    np.testing.assert_array_equal(signed_uv_areas(out.uv, out.faces[-2:]), 0.0)  # degenerate in UV too
+    m = measure(out, reference=mesh).summary
+    assert m["degenerate_uv_faces"] == 2 and np.isfinite(m["distortion_metric"]) and m["flipped_faces"] == 0
+    good = np.ones(len(f), bool)
+    good[-2:] = False
+    assert (signed_uv_areas(out.uv, out.faces[good]) > 0).all()
+
+
+def test_clean_labels_merges_specks_into_the_longest_border_neighbour():
+    sheet = shapes.sheet(size=1.0, resolution=21)
+    v, f = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    c = v[f].mean(1)
+    label = np.where(c[:, 0] < 0, 0, 1)
+    speck = np.flatnonzero((np.abs(c[:, 0] + 0.25) < 0.05) & (np.abs(c[:, 1]) < 0.05))  # 2x2 cells: 1 %
+    label[speck] = 1  # a speck of chart 1 inside chart 0's half
+    area = trimesh.triangles.area(v[f])
+    adj = face_adjacency(v, f)
+    assert regions(label, adj).max() + 1 == 3
+    new, st = clean_labels(label, area, np.zeros(len(f), np.int64), adj, min_fraction=0.015)
+    assert st["raw_regions"] == 3 and st["regions"] == 2
+    assert (new[speck] == 0).all() and (new[c[:, 0] > 0] == 1).all()
+
+
+def test_assignment_prefers_the_chart_whose_domain_is_deeper():
+    """Chart A lies exactly on a flat sheet but its domain ends at x = 0.1; chart B floats
+    0.005 above (within NEAR_TOL) over the whole square. Near A's domain border B wins; deep
+    in A's domain (and near B's square border) A wins; a plain nearest-chart rule gives A
+    everywhere A exists."""
+    from texture.assign import assign_faces, chart_surfaces
+
+    G = 61
+    lin = np.linspace(-1, 1, G)
+    u, v = np.meshgrid(lin, lin, indexing="xy")
+    xyz_a = np.stack([0.6 * u, 0.6 * v, 0 * u], -1)
+    xyz_b = np.stack([0.6 * u, 0.6 * v, 0 * u + 0.005], -1)
+    occ_a = np.where(0.6 * u < 0.1, 1.0, 0.0)
+    charts = ChartGrids(np.stack([np.stack([u, v], -1)] * 2), np.stack([xyz_a, xyz_b]),
+                        np.stack([occ_a, np.ones_like(occ_a)]), 0.5, Normalization(np.zeros(3), 1.0))
+    sheet = shapes.sheet(size=1.0, resolution=21)
+    v3, f = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    asg = assign_faces(v3, f, chart_surfaces(charts))
+    c = v3[f].mean(1)
+    assert (asg.label[(c[:, 0] < -0.4) & (np.abs(c[:, 1]) < 0.2)] == 0).all()  # deep in A, near B's border
+    assert (asg.label[(c[:, 0] > -0.05) & (c[:, 0] < 0.05) & (np.abs(c[:, 1]) < 0.2)] == 1).all()  # A's border
+    assert (asg.label[c[:, 0] > 0.2] == 1).all()  # only B reaches there
+    assert asg.stats["far_faces"] == 0
+
+
+def test_slits_lower_the_energy_of_a_cap_and_keep_a_disk():
+    from texture.flatten import is_disk, tutte
+    from texture.relax import RelaxConfig, energy_excess
+    from texture.slits import slit_island
+
+    s = shapes.sphere(subdivisions=3)
+    keep = s.vertices[s.faces].mean(1)[:, 2] > -0.3  # more than a hemisphere: a bag
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    assert is_disk(faces)
+    uv = tutte(xyz, faces)
+    uv *= np.sqrt(trimesh.triangles.area(xyz[faces]).sum() / signed_uv_areas(uv, faces).sum())
+    cfg = RelaxConfig(iterations=100, min_gain=1e-4)
+    from texture.flatten import relax_disk
+    uv, _ = relax_disk(xyz, uv, faces, cfg)
+    before = energy_excess(xyz, uv, faces)
+    r = slit_island(xyz, faces, uv, cfg, target=0.05, max_slits=4)
+    assert r.slits >= 1 and r.excess_after < 0.8 * before
+    assert is_disk(r.faces) and (signed_uv_areas(r.uv, r.faces) > 0).all()
+    np.testing.assert_array_equal(xyz[r.source][r.faces].shape, (len(faces), 3, 3))
+
+
+def test_smooth_borders_removes_teeth_and_terminates():
+    from texture.regions import smooth_borders
+
+    sheet = shapes.sheet(size=1.0, resolution=21)
+    v, f = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    adj = face_adjacency(v, f)
+    c = v[f].mean(1)
+    straight = np.where(c[:, 0] < 0, 0, 1)
+    row = np.floor((c[:, 1] + 0.5) / 0.05).astype(int)
+    teeth = straight.copy()
+    teeth[(c[:, 0] > 0) & (c[:, 0] < 0.05) & (row % 2 == 0)] = 0  # a face-wide tooth every other row
+
+    def border_edges(lab):
+        return int((lab[adj.a] != lab[adj.b]).sum())
+
+    assert border_edges(teeth) > border_edges(straight)
+    out, changed = smooth_borders(teeth, adj)
+    # all teeth but possibly one at the open border (a face there has two neighbours only)
+    assert changed > 0 and border_edges(out) <= border_edges(straight) + 2 < border_edges(teeth)
+    again, changed2 = smooth_borders(out, adj)
+    assert changed2 == 0 and (again == out).all()  # a fixed point: no face has two foreign neighbours

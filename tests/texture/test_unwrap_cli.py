@@ -1,0 +1,119 @@
+"""``mna unwrap`` end to end: files, the input's faces read back, compare on the same mesh, bad input."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from mna import shapes
+from mna.cli import main
+from texture.export import read_back
+from texture.harness import measure
+from texture_helpers import write_sphere_run
+
+SMALL = ["--size", "256", "--padding", "2"]
+
+
+@pytest.fixture(scope="module")
+def unwrapped(tmp_path_factory):
+    """(run with synthetic sphere charts, OUT of `mna unwrap --run`, input mesh)."""
+    run = write_sphere_run(tmp_path_factory.mktemp("sphere_run"), G=48)
+    out = tmp_path_factory.mktemp("unwrap") / "out"
+    assert main(["unwrap", str(run / "input.ply"), "-o", str(out), "--run", str(run), *SMALL]) == 0
+    return run, out, trimesh.load(run / "input.ply", process=False)
+
+
+def test_unwrap_writes_the_input_faces_with_uvs(unwrapped):
+    run, out, mesh = unwrapped
+    for name in ("mesh.obj", "mesh.mtl", "mesh_texture.png", "mesh.glb", "unwrap.json"):
+        assert (out / name).is_file()
+    info = json.loads((out / "unwrap.json").read_text())
+    assert info["fit"] == "reused" and info["input_uv_replaced"] is False
+    for stage in ("prepare", "assign", "clean", "flatten", "relax", "slits", "pack"):
+        assert info["timings"][f"unwrap_{stage}"] >= 0
+    for fmt in ("mesh.obj", "mesh.glb"):
+        back = read_back(out / fmt)
+        assert back.faces.shape == mesh.faces.shape
+        np.testing.assert_allclose(back.vertices[back.faces], np.asarray(mesh.vertices)[mesh.faces], atol=1e-6)
+    m = info["uv_metrics"]
+    assert m["charts"] == info["islands"] and m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    assert m["distortion_metric"] < 0.15
+    # OBJ and GLB of the same export measure identically (GLB stores float32)
+    a, b = (measure(read_back(out / f), reference=mesh).summary for f in ("mesh.obj", "mesh.glb"))
+    for key in ("charts", "flipped_faces", "uv_overlap_percent"):
+        assert a[key] == b[key]
+    for key in ("seam_length", "distortion_metric", "utilization"):
+        assert a[key] == pytest.approx(b[key], rel=1e-3, abs=1e-4)
+
+
+def test_compare_uses_the_same_input_mesh_for_xatlas(unwrapped):
+    _, out, mesh = unwrapped
+    assert main(["compare", str(out), "--no-sweep", *SMALL]) == 0
+    rows = {r["method"]: r for r in json.loads((out / "compare.json").read_text())["methods"]}
+    assert set(rows) == {"mna_unwrap", "xatlas"}
+    assert rows["mna_unwrap"]["faces"] == rows["xatlas"]["faces"] == len(mesh.faces)
+    assert rows["mna_unwrap"]["mesh"] == rows["xatlas"]["mesh"] == "input"
+    assert (out / "xatlas" / "mesh.obj").is_file() and (out / "compare.md").is_file()
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("case", ["no_faces", "nan", "run_missing", "run_garbage"])
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, case):
+    good = tmp_path / "good.obj"
+    shapes.sphere(subdivisions=1).export(good)
+    mesh, extra = good, []
+    if case == "no_faces":
+        mesh = _write(tmp_path / "nofaces.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    elif case == "nan":
+        mesh = _write(tmp_path / "nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
+    elif case == "run_missing":
+        extra = ["--run", str(tmp_path / "no_such_run")]
+    else:
+        run = tmp_path / "garbage_run"
+        run.mkdir()
+        _write(run / "charts.npz", "not a zip file")
+        extra = ["--run", str(run)]
+    out = tmp_path / "out"
+    assert main(["unwrap", str(mesh), "-o", str(out), *extra, *SMALL]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mna unwrap: error:") and len(err.splitlines()) == 1
+    assert not out.exists()
+
+
+def test_unwrap_fits_when_no_run_is_given(tmp_path):
+    """The fit path: a tiny fit of a sphere into OUT (same run-folder contract as `mna fit`)."""
+    mesh = tmp_path / "sphere.obj"
+    shapes.sphere(subdivisions=2).export(mesh)
+    out = tmp_path / "out"
+    rc = main(["unwrap", str(mesh), "-o", str(out), "--preset", "tiny", "--steps", "30", "--charts", "2",
+               "--no-progress", *SMALL])
+    assert rc == 0
+    for name in ("config.yaml", "checkpoint.pt", "charts.npz", "metrics.json", "mesh.obj", "mesh.glb", "unwrap.json"):
+        assert (out / name).is_file(), name
+    info = json.loads((out / "unwrap.json").read_text())
+    assert info["fit"] == "fitted" and info["fit_steps"] == 30 and info["charts"] == 2
+    back = read_back(out / "mesh.obj")
+    loaded = trimesh.load(mesh, process=False, maintain_order=True)
+    np.testing.assert_array_equal(back.faces.shape, loaded.faces.shape)
+    np.testing.assert_allclose(back.vertices[back.faces], loaded.vertices[loaded.faces], atol=1e-6)
+    assert info["uv_metrics"]["flipped_faces"] == 0 and info["uv_metrics"]["uv_overlap_percent"] == 0.0
+
+
+def test_unwrap_refuses_a_non_empty_out_without_overwrite(tmp_path, capsys):
+    """The fit path follows `mna fit`'s run-folder rule (refuse a non-empty OUT; --overwrite)."""
+    mesh = tmp_path / "sphere.obj"
+    shapes.sphere(subdivisions=1).export(mesh)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "config.yaml").write_text("input: elsewhere.obj\n")
+    args = ["unwrap", str(mesh), "-o", str(out), "--preset", "tiny", "--steps", "10", "--no-progress", *SMALL]
+    assert main(args) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert main([*args, "--overwrite"]) == 0 and (out / "unwrap.json").is_file()

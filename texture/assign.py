@@ -1,0 +1,146 @@
+"""Face -> chart labels: which fitted chart each face of the user's mesh belongs to.
+
+Every working face gets ``SAMPLES_BARY`` sample points (its centroid and three points
+toward its corners), in the unit-ball frame. For each sample and each chart ``k`` we take
+the exact closest point on the chart's *trimmed surface* (the grid triangles of chart
+``k`` whose three vertices are in its domain ``occ > tau``) and there the chart's
+*depth*: the distance, in grid cells, from that grid point to the nearest grid point out
+of the domain (a Euclidean distance transform of the domain mask, interpolated).
+
+A sample votes for, among the charts within ``NEAR_TOL`` of its nearest chart, the one
+in whose domain it lies deepest: where two charts overlap (their domains are fitted
+independently), the one that reaches the point from well inside its domain gives the
+cleaner label than whichever happens to be a hair closer. A face takes the label with
+most votes (ties: the smaller chart id). A face whose samples all lie farther than
+``FAR_TOL`` from every chart is *far*: it keeps the nearest chart's label, and is counted.
+
+``clean_labels`` then merges small regions; see :mod:`texture.regions`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+from scipy.spatial import cKDTree
+
+from .charts import ChartGrids
+from .geometry import MeshProjector
+
+#: barycentric coordinates of the samples of each face: centroid + three toward the corners.
+SAMPLES_BARY = np.array([[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6],
+                         [1 / 6, 1 / 6, 2 / 3]])
+#: charts within this of the nearest one (unit-ball frame, 0.5 % of the diameter) compete on depth.
+NEAR_TOL = 0.01
+#: a sample farther than this from every chart (1 % of the diameter) is not reached by the fit.
+FAR_TOL = 0.02
+#: closest points are exact within this distance (nearest grid vertex beyond; > FAR_TOL + NEAR_TOL).
+PROJECT_TOL = 0.05
+#: above this many samples (4 per face), one sample per face (the centroid).
+MAX_SAMPLES = 200_000
+#: chart surfaces for labelling use at most this many grid lines per side.
+MAX_GRID = 128
+
+
+@dataclass
+class ChartSurface:
+    """Chart ``k``'s trimmed surface: ``vertices (Vk, 3)`` unit frame, ``faces (Fk, 3)``,
+    ``depth (Vk,)`` in (strided) grid cells (0 outside the domain)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    depth: np.ndarray
+
+
+def chart_surfaces(charts: ChartGrids, max_grid: int = MAX_GRID) -> list[ChartSurface]:
+    """One :class:`ChartSurface` per chart (empty arrays for a chart with an empty domain),
+    on every ``ceil(G / max_grid)``-th grid line (labels need no finer surface).
+
+    Grid cell ``(i, j)`` is split into triangles ``(a, b, c)`` and ``(a, c, d)`` with
+    ``a = (i, j)``, ``b = (i, j+1)``, ``c = (i+1, j+1)``, ``d = (i+1, j)`` (counter-clockwise
+    in UV, since u grows with j and v with i).
+    """
+    step = max(1, -(-charts.grid // max_grid))
+    G = len(range(0, charts.grid, step))
+    i, j = np.meshgrid(np.arange(G - 1), np.arange(G - 1), indexing="ij")
+    a = (i * G + j).ravel()
+    b, c, d = a + 1, a + G + 1, a + G
+    grid_faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    out = []
+    for k in range(charts.n_charts):
+        inside = charts.occ[k] > charts.tau
+        # the square's edge is the domain's border too: pad with out-of-domain cells
+        depth = distance_transform_edt(np.pad(inside, 1))[1:-1, 1:-1][::step, ::step].ravel() / step
+        inside = inside[::step, ::step]
+        xyz = charts.normalization.apply(charts.xyz[k, ::step, ::step].reshape(-1, 3))
+        keep = inside.ravel()[grid_faces].all(1)
+        f = grid_faces[keep]
+        used, inv = np.unique(f, return_inverse=True)
+        out.append(ChartSurface(xyz[used], inv.reshape(-1, 3), depth[used]))
+    return out
+
+
+@dataclass
+class Assignment:
+    """Face labels and how they were decided.
+
+    Attributes:
+        label: (F,) chart per face.
+        far: (F,) bool: every sample farther than ``FAR_TOL`` from every chart.
+        distance: (F,) mean distance of the face's samples to their nearest chart.
+        stats: JSON-friendly counts.
+    """
+
+    label: np.ndarray
+    far: np.ndarray
+    distance: np.ndarray
+    stats: dict
+
+
+def face_samples(vertices: np.ndarray, faces: np.ndarray, bary: np.ndarray = SAMPLES_BARY) -> np.ndarray:
+    """(F, S, 3) sample points of each face (barycentric rows ``bary (S, 3)``)."""
+    return np.einsum("sc,fcd->fsd", bary, vertices[faces])
+
+
+def assign_faces(vertices: np.ndarray, faces: np.ndarray, surfaces: list[ChartSurface],
+                 near_tol: float = NEAR_TOL, far_tol: float = FAR_TOL,
+                 max_samples: int = MAX_SAMPLES) -> Assignment:
+    """Label each face of ``(vertices (V,3) unit frame, faces (F,3))``; see the module docstring.
+
+    Meshes with more than ``max_samples / 4`` faces get one sample per face (the centroid):
+    their faces are small next to the charts' features, and neighbours vote alike.
+    """
+    bary = SAMPLES_BARY if len(faces) * len(SAMPLES_BARY) <= max_samples else SAMPLES_BARY[:1]
+    F, S, K = len(faces), len(bary), len(surfaces)
+    pts = face_samples(vertices, faces, bary).reshape(-1, 3)
+    dist = np.full((len(pts), K), np.inf)
+    depth = np.zeros((len(pts), K))
+    for k, s in enumerate(surfaces):
+        if len(s.faces) == 0:
+            continue
+        # exact closest points only where they can matter (a far query is slow for the
+        # projector's k-NN search); beyond, the nearest grid vertex (its depth is irrelevant)
+        proj = MeshProjector(s.vertices, s.faces).project(pts, max_distance=PROJECT_TOL)
+        hit = np.isfinite(proj.distance)
+        dist[hit, k] = proj.distance[hit]
+        depth[hit, k] = (proj.bary[hit] * s.depth[s.faces[proj.face[hit]]]).sum(1)
+        if not hit.all():
+            dist[~hit, k] = cKDTree(s.vertices).query(pts[~hit])[0]
+    if not np.isfinite(dist).any(axis=1).all():
+        raise ValueError("assign_faces: no chart has a non-empty domain")
+    nearest = dist.min(1)
+    competing = dist <= nearest[:, None] + near_tol
+    vote = np.argmax(np.where(competing, depth, -1.0), axis=1)  # argmax: smallest k on ties
+    votes = np.zeros((F, K))
+    np.add.at(votes, (np.repeat(np.arange(F), S), vote), 1.0)
+    label = np.argmax(votes, axis=1)
+    face_nearest = nearest.reshape(F, S)
+    far = (face_nearest > far_tol).all(1)
+    plain = np.argmin(dist, axis=1).reshape(F, S)
+    # far faces: the chart nearest to the centroid (sample 0) instead of the depth vote
+    label[far] = plain[far, 0]
+    stats = {"samples_per_face": S, "near_tol": near_tol, "far_tol": far_tol,
+             "far_faces": int(far.sum()),
+             "depth_vote_changed_samples": int((vote != plain.ravel()).sum()),
+             "faces_per_chart": np.bincount(label, minlength=K).tolist()}
+    return Assignment(label.astype(np.int64), far, face_nearest.mean(1), stats)

@@ -1,0 +1,220 @@
+"""One region of faces -> topological disks -> a flip-free flattening (Tutte, then SLIM).
+
+- :func:`split_pinched` splits vertices where two fans of a region touch (a pinch), so
+  the region is a manifold surface with boundary.
+- :func:`cut_to_disks` makes it a disk: libigl's ``cut_to_disk`` (a cut graph through
+  every handle and between every pair of boundary loops) and ``cut_mesh``; a closed
+  genus-0 region (no cut needed by that definition, but no boundary either) is cut along
+  the graph-shortest path from its first vertex to the vertex farthest from it.
+- :func:`tutte` embeds a disk in the unit circle with uniform weights (Tutte's theorem:
+  for a disk whose boundary is mapped to a convex polygon, every interior vertex at the
+  mean of its neighbours gives an embedding without flipped faces), boundary vertices at
+  arc-length positions (``igl.map_vertices_to_circle``).
+- SLIM (:mod:`texture.relax`) then relaxes it toward an isometry; see :mod:`texture.unwrap`.
+
+Face order and corner order are kept by every step (``cut_mesh`` duplicates vertices
+only), so face ``i`` of a cut disk is face ``i`` of the region.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from .meshprep import corner_groups
+
+
+@dataclass
+class Disk:
+    """A region cut to a disk: ``faces (F, 3)`` into its ``source (V,)`` region vertices."""
+
+    faces: np.ndarray
+    source: np.ndarray
+    cut_edges: int
+
+
+def split_pinched(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(faces (F,3) with pinched vertices split, source (V',) original vertex of each new one)."""
+    new, _ = corner_groups(faces)
+    src = np.zeros(int(new.max()) + 1, np.int64)
+    src[new.ravel()] = faces.ravel()
+    return new, src
+
+
+def boundary_loop_count(faces: np.ndarray) -> int:
+    """Connected components of the boundary edges (edges used once) of a manifold mesh."""
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    n = int(faces.max()) + 1
+    key = he.min(1) * n + he.max(1)
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    b = he[counts[inv.reshape(-1)] == 1]
+    if len(b) == 0:
+        return 0
+    used, idx = np.unique(b, return_inverse=True)
+    idx = idx.reshape(-1, 2)
+    g = sp.coo_matrix((np.ones(len(b)), (idx[:, 0], idx[:, 1])), shape=(len(used), len(used)))
+    return int(connected_components(g, directed=False)[0])
+
+
+def euler_characteristic(faces: np.ndarray) -> int:
+    """``V - E + F`` over the vertices used by ``faces``."""
+    he = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2), axis=1)
+    E = len(np.unique(he, axis=0))
+    return int(len(np.unique(faces)) - E + len(faces))
+
+
+def is_disk(faces: np.ndarray) -> bool:
+    return euler_characteristic(faces) == 1 and boundary_loop_count(faces) == 1
+
+
+def _edge_graph(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    w = np.linalg.norm(vertices[he[:, 0]] - vertices[he[:, 1]], axis=1) + 1e-12
+    n = len(vertices)
+    g = sp.coo_matrix((w, (he[:, 0], he[:, 1])), shape=(n, n)).tocsr()
+    return g.maximum(g.T)
+
+
+def _farthest_path(vertices: np.ndarray, faces: np.ndarray) -> list[list[int]]:
+    """Shortest edge path from the first face's first vertex to the vertex farthest from it."""
+    start = int(faces[0, 0])
+    dist, pred = dijkstra(_edge_graph(vertices, faces), indices=start, return_predecessors=True)
+    dist[~np.isfinite(dist)] = -1
+    v = int(np.argmax(dist))
+    path = [v]
+    while v != start:
+        v = int(pred[v])
+        path.append(v)
+    return [path[::-1]]
+
+
+def _cut_flags(faces: np.ndarray, cuts: list[list[int]]) -> np.ndarray:
+    """(F, 3) bool: edge ``(faces[f, j], faces[f, (j+1) % 3])`` lies on a cut path."""
+    n = int(faces.max()) + 1
+    keys = set()
+    for c in cuts:
+        c = np.asarray(c, np.int64)
+        keys.update((np.minimum(c[:-1], c[1:]) * n + np.maximum(c[:-1], c[1:])).tolist())
+    keys = np.fromiter(keys, np.int64, len(keys))
+    flags = np.zeros(faces.shape, bool)
+    for j in range(3):
+        a, b = faces[:, j], faces[:, (j + 1) % 3]
+        flags[:, j] = np.isin(np.minimum(a, b) * n + np.maximum(a, b), keys)
+    return flags
+
+
+def cut_to_disk(vertices: np.ndarray, faces: np.ndarray) -> Disk:
+    """Cut the region ``(vertices (V,3), faces (F,3))`` (manifold, connected) into one disk.
+
+    Raises ``RuntimeError`` if the result is not a disk (the caller splits the region).
+    """
+    import igl
+
+    faces = np.asarray(faces, np.int64)
+    if is_disk(faces):
+        return Disk(faces, np.arange(len(vertices)), 0)
+    if boundary_loop_count(faces) == 0 and euler_characteristic(faces) == 2:
+        cuts = _farthest_path(vertices, faces)
+    else:
+        cuts = [list(c) for c in igl.cut_to_disk(faces)]
+    flags = _cut_flags(faces, cuts)
+    _, new_faces, source = igl.cut_mesh(np.asarray(vertices, np.float64), faces, flags)
+    new_faces = np.asarray(new_faces, np.int64)
+    if not is_disk(new_faces):
+        raise RuntimeError("cut_to_disk: the cut region is not a disk")
+    return Disk(new_faces, np.asarray(source, np.int64), int(flags.sum()))
+
+
+def ordered_boundary(faces: np.ndarray) -> np.ndarray:
+    """Boundary vertices of a disk in the order of its boundary half-edges."""
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    n = int(faces.max()) + 1
+    key = he.min(1) * n + he.max(1)
+    _, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    b = he[counts[inv.reshape(-1)] == 1]
+    nxt = dict(zip(b[:, 0].tolist(), b[:, 1].tolist()))
+    loop = [int(b[0, 0])]
+    while len(loop) <= len(b):
+        v = nxt[loop[-1]]
+        if v == loop[0]:
+            break
+        loop.append(v)
+    return np.asarray(loop, np.int64)
+
+
+def tutte(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(V, 2) uniform-weight Tutte embedding of a disk; boundary on the unit circle by arc length.
+
+    Interior vertex ``i``: ``deg(i) x_i - sum_{j ~ i} x_j = 0``. Counter-clockwise boundary
+    order follows the faces' winding, so faces keep their orientation (positive UV area).
+    """
+    import igl
+
+    V = len(vertices)
+    bnd = ordered_boundary(faces)
+    bnd_uv = np.asarray(igl.map_vertices_to_circle(np.asfortranarray(vertices, np.float64),
+                                                   np.ascontiguousarray(bnd, np.int32)), np.float64)
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    A = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(V, V)).tocsr()
+    A = ((A + A.T) > 0).astype(np.float64)
+    L = sp.diags(np.asarray(A.sum(1)).ravel()) - A
+    uv = np.zeros((V, 2))
+    uv[bnd] = bnd_uv
+    interior = np.setdiff1d(np.arange(V), bnd)
+    if len(interior):
+        from scipy.sparse.linalg import splu
+
+        L = L.tocsr()
+        rhs = -L[interior][:, bnd] @ bnd_uv
+        lu = splu(L[interior][:, interior].tocsc())
+        uv[interior] = lu.solve(rhs)
+    return uv
+
+
+def isometric_triangle(p: np.ndarray) -> np.ndarray:
+    """(3, 2) a triangle with the 3D corners ``p (3, 3)``'s edge lengths, counter-clockwise:
+    ``(0, 0)``, ``(|p1 - p0|, 0)`` and the third corner by projection onto edge 01."""
+    e1, e2 = p[1] - p[0], p[2] - p[0]
+    length = float(np.linalg.norm(e1))
+    x = float(e1 @ e2) / max(length, 1e-300)
+    y = float(np.sqrt(max(float(e2 @ e2) - x * x, 0.0)))
+    return np.array([[0.0, 0.0], [length, 0.0], [x, y]])
+
+
+def signed_uv_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) signed UV area (positive = counter-clockwise)."""
+    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+#: border-pinning retries of the guarded SLIM run (texture.relax's default is 4).
+GUARD_PIN_ROUNDS = 16
+
+
+def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple[np.ndarray, dict]:
+    """SLIM on one disk (``uv`` at the isometric scale, flip-free): ``(uv, stats)``.
+
+    First free SLIM (``texture.relax.relax_island`` without the border-crossing guard): its
+    iterations may cross the border on the way and still end injective, and the guard's
+    pinning can stall far from the optimum (a 683-face bunny region: excess 4.17 guarded,
+    0.02 free). If the free result flips a face or crosses its border, the guarded run
+    (crossing-free after every iteration) is used instead; if that fails too, the start.
+    """
+    from .relax import crossing_edges, energy_excess, relax_island
+
+    def ok(u):
+        return np.isfinite(u).all() and (signed_uv_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))
+
+    free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
+    if ok(free.uv):
+        return free.uv, {"mode": "free", "iterations": free.iterations, "excess": free.excess_after}
+    from dataclasses import replace
+
+    guarded = relax_island(xyz, uv, faces, replace(cfg, pin_rounds=GUARD_PIN_ROUNDS), check_crossings=True)
+    if ok(guarded.uv):
+        return guarded.uv, {"mode": "guarded", "iterations": free.iterations + guarded.iterations,
+                            "excess": guarded.excess_after}
+    return uv, {"mode": "start", "iterations": free.iterations + guarded.iterations,
+                "excess": energy_excess(xyz, uv, faces)}

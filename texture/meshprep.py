@@ -1,0 +1,173 @@
+"""Pre-clean a user's mesh for unwrapping, without changing its faces or their order.
+
+``prepare_mesh(vertices, faces)`` returns a :class:`PreparedMesh`: a *working* mesh on
+which every non-degenerate input face is a face of an edge-manifold, consistently
+oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered:
+
+- duplicated vertices (same position within ``WELD_TOL`` of the bounding-box diagonal)
+  are welded, so a mesh saved with split vertices unwraps as one surface;
+- non-manifold edges (used by more than two faces) and edges whose two faces disagree
+  on orientation are *cut* (their faces are not connected across them), and
+  non-manifold vertices (several fans meeting at one point) are split into one working
+  vertex per fan: a working vertex is a group of face corners on one welded point that
+  are connected through the remaining (manifold, consistently oriented) edges;
+- degenerate faces (a repeated vertex after welding, or zero 3D area) are left out of
+  the working mesh (``work_face == -1``); :mod:`texture.unwrap` gives them the UVs of
+  their corners in a neighbouring island, so they still get valid UVs.
+
+Example: two triangles ``(0,1,2), (3,2,1)`` where vertex 3 duplicates vertex 0's
+position weld into a closed two-face "pillow" with three working vertices and
+edges of use 2.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from mna.errors import InputError
+
+from .geometry import triangle_areas
+from .uvmesh import weld_ids
+
+#: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
+WELD_TOL = 1e-9
+#: a face with 3D area below this times the squared diagonal is degenerate.
+DEGENERATE_AREA = 1e-14
+
+
+@dataclass
+class PreparedMesh:
+    """A working mesh for unwrapping and its maps to the input.
+
+    Attributes:
+        vertices: (V, 3) input positions (as given).
+        faces: (F, 3) input faces (as given).
+        work_vertices: (W, 3) positions of the working vertices.
+        work_faces: (Fw, 3) working faces: manifold, consistently oriented.
+        work_face: (F,) working face of each input face, -1 for a degenerate face.
+        input_face: (Fw,) input face of each working face.
+        corner_vertex: (F, 3) working vertex of each input face corner (-1 on degenerate faces).
+        component: (Fw,) connected component of each working face (ids 0..C-1).
+        stats: counts of what was welded, cut and split.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    work_vertices: np.ndarray
+    work_faces: np.ndarray
+    work_face: np.ndarray
+    input_face: np.ndarray
+    corner_vertex: np.ndarray
+    component: np.ndarray
+    stats: dict
+
+    @property
+    def n_components(self) -> int:
+        return int(self.component.max()) + 1 if len(self.component) else 0
+
+
+def validate_mesh(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """(vertices float64 (V,3), faces int64 (F,3)) or ``InputError`` naming the problem."""
+    vertices = np.asarray(vertices, np.float64)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise InputError(f"{name}: vertices must have shape (V, 3), got {vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise InputError(f"{name} has no triangle faces (faces shape {faces.shape})")
+    if not np.issubdtype(faces.dtype, np.integer):
+        raise InputError(f"{name}: faces must be integers, got {faces.dtype}")
+    faces = faces.astype(np.int64)
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise InputError(f"{name}: face indices out of range [0, {len(vertices)})")
+    used = vertices[np.unique(faces)]
+    if not np.isfinite(used).all():
+        raise InputError(f"{name}: vertex positions contain NaN or inf")
+    return vertices, faces
+
+
+def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:
+    """(F,) bool: a repeated (welded) vertex or 3D area <= ``DEGENERATE_AREA * diag^2``."""
+    f = weld[faces]
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    used = vertices[np.unique(faces)]
+    diag = float(np.linalg.norm(used.max(0) - used.min(0))) or 1.0
+    return repeated | (triangle_areas(vertices, faces) <= DEGENERATE_AREA * diag * diag)
+
+
+def corner_groups(wf: np.ndarray) -> tuple[np.ndarray, dict]:
+    """(Fw, 3) working vertex per corner of faces ``wf`` (welded ids), cutting bad edges.
+
+    Corners ``(f, c)`` and ``(g, d)`` on the same welded point are joined when faces
+    ``f`` and ``g`` share an edge through that point that is used by exactly these two
+    faces in opposite directions (manifold and consistently oriented).
+    """
+    Fw = len(wf)
+    he = np.stack([wf, np.roll(wf, -1, axis=1)], -1).reshape(-1, 2)  # (3Fw, 2): corner c -> c+1
+    lo, hi = he.min(1), he.max(1)
+    n = int(wf.max()) + 1
+    key = lo * n + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
+    counts = np.diff(np.r_[starts, len(ks)])
+    pair = starts[counts == 2]
+    a, b = order[pair], order[pair + 1]  # half-edge ids
+    opposite = (he[a, 0] == he[b, 1]) & (he[a, 1] == he[b, 0])
+    stats = {"nonmanifold_edges": int((counts > 2).sum()),
+             "inconsistent_edges": int((~opposite).sum()),
+             "boundary_edges": int((counts == 1).sum())}
+    a, b = a[opposite], b[opposite]
+    # half-edge h = 3 f + c runs corner c -> c+1; its twin runs d+1 -> d: join (f,c)~(g,d+1), (f,c+1)~(g,d)
+    fa, ca = np.divmod(a, 3)
+    fb, cb = np.divmod(b, 3)
+    c1 = np.r_[3 * fa + ca, 3 * fa + (ca + 1) % 3]
+    c2 = np.r_[3 * fb + (cb + 1) % 3, 3 * fb + cb]
+    graph = coo_matrix((np.ones(len(c1)), (c1, c2)), shape=(3 * Fw, 3 * Fw))
+    _, group = connected_components(graph, directed=False)
+    _, corner_vertex = np.unique(group, return_inverse=True)
+    return corner_vertex.reshape(Fw, 3), stats
+
+
+def face_components(faces: np.ndarray) -> np.ndarray:
+    """(F,) connected component of each face (sharing a vertex index), ids by first face."""
+    F = len(faces)
+    V = int(faces.max()) + 1
+    rows = np.repeat(np.arange(F), 3)
+    graph = coo_matrix((np.ones(3 * F), (rows, F + faces.ravel())), shape=(F + V, F + V))
+    _, labels = connected_components(graph, directed=False)
+    labels = labels[:F]
+    _, first, inv = np.unique(labels, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inv.reshape(-1)]
+
+
+def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
+    """Weld, cut non-manifold and inconsistently oriented edges, split non-manifold vertices,
+    set degenerate faces aside; see the module docstring. Raises ``InputError`` on bad input
+    (no faces, NaN, out-of-range indices, only degenerate faces)."""
+    vertices, faces = validate_mesh(vertices, faces, name)
+    weld = weld_ids(vertices, WELD_TOL)
+    degenerate = degenerate_faces(vertices, faces, weld)
+    keep = np.flatnonzero(~degenerate)
+    if len(keep) == 0:
+        raise InputError(f"{name}: every face is degenerate (zero area or a repeated vertex)")
+    corner_vertex_w, stats = corner_groups(weld[faces[keep]])
+    # position of a working vertex: the input position of (any) one of its corners
+    pos = np.zeros((int(corner_vertex_w.max()) + 1, 3))
+    pos[corner_vertex_w.ravel()] = vertices[faces[keep].ravel()]
+    corner_vertex = np.full(faces.shape, -1, np.int64)
+    corner_vertex[keep] = corner_vertex_w
+    work_face = np.full(len(faces), -1, np.int64)
+    work_face[keep] = np.arange(len(keep))
+    n_points = len(np.unique(weld[faces[keep]]))
+    stats.update({"input_vertices": int(len(vertices)), "input_faces": int(len(faces)),
+                  "welded_vertices": int(len(np.unique(faces)) - len(np.unique(weld[faces]))),
+                  "degenerate_faces": int(degenerate.sum()),
+                  "split_vertices": int(len(pos) - n_points)})
+    comp = face_components(corner_vertex_w)
+    stats["components"] = int(comp.max()) + 1
+    return PreparedMesh(vertices, faces, pos, corner_vertex_w, work_face, keep, corner_vertex, comp, stats)

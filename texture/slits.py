@@ -1,0 +1,133 @@
+"""Slits: lower an island's distortion by cutting into it, not by adding islands.
+
+A disk that is far from developable (a cap, a bag-like chart region) keeps a high
+symmetric Dirichlet energy under SLIM however long it runs: area has to go somewhere.
+A *slit* is a shortest edge path from the island's border to the vertex where the
+relaxed map is most distorted; cutting along it keeps the island one disk (a path that
+starts on the border and never returns to it) but lets the surface open there, like the
+darts of a sewing pattern. :func:`slit_island` repeats: find the peak, cut, re-embed by
+Tutte (:func:`texture.flatten.tutte`), relax with SLIM (:func:`texture.relax.relax_island`),
+until the energy excess is below the target or ``max_slits`` were cut, and keeps the
+result only where it lowered the energy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
+
+from mna import distortion as D
+
+from .distortion_faces import face_geometry
+from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, signed_uv_areas, tutte
+from .geometry import triangle_areas
+from .relax import RelaxConfig, energy_excess
+
+
+#: stop slitting an island after this many slits in a row that did not lower its energy.
+MAX_MISSES = 2
+
+
+@dataclass
+class SlitResult:
+    """Faces/UVs/positions of the (possibly) slit island; ``source (V,)``: vertex of the input island."""
+
+    faces: np.ndarray
+    uv: np.ndarray
+    source: np.ndarray
+    slits: int
+    excess_before: float
+    excess_after: float
+
+
+def face_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) ``tr g + tr g^-1 - 4`` per face of the map UV -> 3D (inf on degenerate faces)."""
+    geom = face_geometry(xyz, faces, uv)
+    e = np.full(len(faces), np.inf)
+    v = geom.valid
+    g = D.metric_tensor(geom.jac[v])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e[v] = D.trace(g) + D.trace_inverse(g, eps=0.0) - 4.0
+    return e
+
+
+def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[int] | None:
+    """Shortest path (3D edge length) from the border to the interior vertex of highest
+    area-weighted mean face ``energy``; None when the island has no interior vertex."""
+    V = len(xyz)
+    border = np.zeros(V, bool)
+    border[ordered_boundary(faces)] = True
+    if border.all():
+        return None
+    area = triangle_areas(xyz, faces)
+    e = np.where(np.isfinite(energy), energy, 0.0)
+    num = np.bincount(faces.ravel(), weights=np.repeat(e * area, 3), minlength=V)
+    den = np.bincount(faces.ravel(), weights=np.repeat(area, 3), minlength=V)
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    keep = ~(border[he[:, 0]] & border[he[:, 1]])  # never walk along (or across) the border
+    he = he[keep]
+    w = np.linalg.norm(xyz[he[:, 0]] - xyz[he[:, 1]], axis=1) + 1e-12
+    g = sp.coo_matrix((w, (he[:, 0], he[:, 1])), shape=(V, V)).tocsr()
+    g = g.maximum(g.T)
+    dist, pred, src = dijkstra(g, indices=np.flatnonzero(border), min_only=True, return_predecessors=True)
+    # the peak: distorted *and* deep inside (a free border already relaxes what lies near it;
+    # what it cannot reach is where a cap or a bag closes, far from the border)
+    energy_v = num / np.maximum(den, 1e-300)
+    score = np.where(border | ~np.isfinite(dist), -np.inf, np.sqrt(np.maximum(energy_v, 0.0)) * dist)
+    peak = int(np.argmax(score))
+    if not np.isfinite(score[peak]):
+        return None
+    path = [peak]
+    while not border[path[-1]]:
+        path.append(int(pred[path[-1]]))
+    return path[::-1]
+
+
+def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
+    """Tutte then SLIM at the isometric scale; None if the Tutte embedding is not valid."""
+    uv = tutte(xyz, faces)
+    signed = signed_uv_areas(uv, faces)
+    if not np.isfinite(uv).all() or (signed <= 0).any():
+        return None
+    uv *= np.sqrt(triangle_areas(xyz, faces).sum() / signed.sum())
+    return relax_disk(xyz, uv, faces, cfg)[0]
+
+
+def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxConfig, target: float,
+                max_slits: int) -> SlitResult:
+    """Cut up to ``max_slits`` slits while the energy excess exceeds ``target``; see module docstring."""
+    import igl
+
+    faces = np.asarray(faces, np.int64)
+    source = np.arange(len(xyz))
+    before = energy_excess(xyz, uv, faces)
+    best = SlitResult(faces, uv, source, 0, before, before)
+    cur_faces, cur_uv, cur_src = faces, uv, source
+    misses = 0
+    for k in range(max_slits):
+        if best.excess_after <= target:
+            break
+        p = xyz[cur_src]
+        path = slit_path(p, cur_faces, face_energy(p, cur_uv, cur_faces))
+        if path is None or len(path) < 2:
+            break
+        _, new_faces, src = igl.cut_mesh(p, cur_faces, _cut_flags(cur_faces, [path]))
+        new_faces = np.asarray(new_faces, np.int64)
+        if not is_disk(new_faces):
+            break
+        new_src = cur_src[np.asarray(src, np.int64)]
+        new_uv = _embed(xyz[new_src], new_faces, cfg)
+        if new_uv is None:
+            break
+        cur_faces, cur_uv, cur_src = new_faces, new_uv, new_src
+        excess = energy_excess(xyz[cur_src], cur_uv, cur_faces)
+        if excess < best.excess_after:
+            best = SlitResult(cur_faces, cur_uv, cur_src, k + 1, before, excess)
+            misses = 0
+        else:
+            misses += 1
+            if misses >= MAX_MISSES:  # two slits that did not help: halving will do better
+                break
+    return best

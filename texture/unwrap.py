@@ -1,0 +1,262 @@
+"""Neural-chart UVs on the user's own mesh: ``unwrap_mesh(vertices, faces, charts)``.
+
+The fitted charts supply the *segmentation*; classical geometry processing supplies the
+flattening (the charts' own UVs are not a usable start: input vertices off a chart's
+domain project onto its border and fold). Stages (timed in ``stats["timings"]``):
+
+1. ``prepare``: weld, cut non-manifold edges, split non-manifold vertices, set degenerate
+   faces aside (:mod:`texture.meshprep`); the input's faces and their order are kept.
+2. ``assign``: chart per face by depth-preferring nearest-chart votes (:mod:`texture.assign`).
+   A connected component none of whose faces comes within ``FAR_TOL`` of a chart is a
+   *fallback* component: it becomes its own region, flattened the same classical way
+   (cut to a disk, Tutte, SLIM), and ``fallback_area_fraction`` reports its share.
+3. ``clean``: small regions merged into their longest-border neighbour (:mod:`texture.regions`).
+4. ``flatten``: each region split at pinches and cut to a disk, embedded by Tutte
+   (:mod:`texture.flatten`), scaled so its UV area equals its 3D area (unit-ball frame).
+   A region that cannot be cut to a disk is split in two across its longest axis.
+5. ``relax``: SLIM toward an isometry (:func:`texture.relax.relax_meshes`), all islands
+   at the one scale above (so one texel density), border crossings prevented; each
+   island's flips and boundary crossings are counted afterwards.
+6. ``pack``: :func:`texture.pack.pack_islands` at ``resolution`` and ``padding``.
+
+Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
+the same corner order, in the input frame; output vertex = one per distinct (input
+vertex, island vertex) pair, so input vertices are duplicated only along seams (and where
+the input was non-manifold). A degenerate face (zero area or a repeated index) gets three
+vertices of its own (its corners' 3D positions) on one UV point of a neighbouring island:
+a zero-area UV triangle inside that island.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
+from .charts import ChartGrids
+from .flatten import signed_uv_areas
+from .geometry import triangle_areas
+from .meshprep import prepare_mesh
+from .pack import pack_islands
+from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
+from .unwrap_islands import (WHOLE, Island, flatten_region, prefer_whole, refine_islands, relax_islands, slit_islands,
+                             whole_components)
+from .uvmesh import UVMesh, weld_ids
+
+
+@dataclass
+class UnwrapConfig:
+    """Options of :func:`unwrap_mesh` (``mna unwrap``)."""
+
+    min_fraction: float = MIN_FRACTION
+    """Regions below this fraction of their component's area merge into a neighbour."""
+    smooth_passes: int = 20
+    """Most border-smoothing sweeps before merging (:func:`texture.regions.smooth_borders`; 0 = off)."""
+    near_tol: float = NEAR_TOL
+    """Charts within this of the nearest (unit-ball frame) compete on domain depth."""
+    far_tol: float = FAR_TOL
+    """Samples farther than this from every chart are not reached by the fit."""
+    slim_iterations: int = 200
+    """Most SLIM iterations per island."""
+    slim_min_gain: float = 1e-4
+    """Stop an island's SLIM once an iteration gains less than this in mean energy excess."""
+    resolution: int = 2048
+    """Texture size the islands are packed for (texels)."""
+    padding: int = 8
+    """Gutter around each island (texels)."""
+    max_split_depth: int = 6
+    """A region that cannot be cut to a disk is halved at most this many times."""
+    slit_target: float = 0.1
+    """Islands whose energy excess (mean ``tr g + tr g^-1 - 4``) stays above this after SLIM
+    get slits (:mod:`texture.slits`)."""
+    max_slits: int = 8
+    """Most slits per island."""
+    whole_max_faces: int = 5_000
+    """Components the charts split into several regions are first tried whole (one island)
+    when they have at most this many faces (:func:`_whole_components`)."""
+    target_distortion: float = 0.14
+    """While the islands' distortion_metric (the harness's formula) exceeds this after slits,
+    the island contributing most is halved and re-flattened (issue target: 0.15)."""
+    max_split_rounds: int = 16
+    """Most halvings for ``target_distortion``."""
+
+
+@dataclass
+class Unwrap:
+    """Result of :func:`unwrap_mesh`: the UV mesh (input frame), island per face, stats."""
+
+    mesh: UVMesh
+    island: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+
+def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
+                 offsets: np.ndarray) -> tuple[UVMesh, np.ndarray, dict]:
+    """Assemble the input-ordered UV mesh from the packed islands (see module docstring)."""
+    F = len(prep.faces)
+    corner_node = np.full((F, 3), -1, np.int64)  # global island-vertex id per input corner
+    face_island = np.full(F, -1, np.int64)
+    node_work = np.concatenate([isl.work_vertex for isl in islands])
+    for i, isl in enumerate(islands):
+        in_faces = prep.input_face[isl.work_faces]
+        corner_node[in_faces] = isl.faces + offsets[i]
+        face_island[in_faces] = i
+    # degenerate faces: their corners' UVs in one island touching them
+    weld_of_work = np.full(len(prep.work_vertices), -1, np.int64)
+    weld = weld_ids(prep.vertices)
+    weld_of_work[prep.corner_vertex[prep.work_face >= 0].ravel()] = weld[prep.faces[prep.work_face >= 0].ravel()]
+    node_weld = weld_of_work[node_work]
+    node_island = np.repeat(np.arange(len(islands)), [len(isl.uv) for isl in islands])
+    lookup = {}
+    for n in range(len(node_weld) - 1, -1, -1):
+        lookup[(int(node_island[n]), int(node_weld[n]))] = n
+        lookup[(-1, int(node_weld[n]))] = n
+    isolated = 0
+    degenerate = np.flatnonzero(prep.work_face < 0)
+    for f in degenerate:
+        w = weld[prep.faces[f]]
+        first = next((lookup[(-1, int(x))] for x in w if (-1, int(x)) in lookup), None)
+        if first is None:
+            isolated += 1
+            corner_node[f] = 0  # nowhere to sit: collapsed onto one UV point
+            face_island[f] = 0
+            continue
+        # all three corners on one UV point (own copies): zero UV area, so the face is
+        # skipped by the distortion measures instead of carrying a near-zero, signed UV area
+        corner_node[f] = first
+        face_island[f] = int(node_island[first])
+    # output vertex per (input vertex, node); a face repeating a vertex gets distinct copies
+    corner_key = np.stack([prep.faces.ravel(), corner_node.ravel()], 1)
+    rep = np.zeros((F, 3), np.int64)
+    fr = prep.faces
+    rep[:, 1] = fr[:, 1] == fr[:, 0]
+    rep[:, 2] = (fr[:, 2] == fr[:, 0]) | (fr[:, 2] == fr[:, 1])
+    rep[:, 2] += (fr[:, 2] == fr[:, 0]) & (fr[:, 2] == fr[:, 1])
+    rep[degenerate] = [3, 4, 5]
+    corner_key = np.column_stack([corner_key, rep.ravel()])
+    uniq, inv = np.unique(corner_key, axis=0, return_inverse=True)
+    mesh = UVMesh(prep.vertices[uniq[:, 0]], inv.reshape(F, 3).astype(np.int64), packed_uv[uniq[:, 1]])
+    return mesh, face_island, {"isolated_degenerate_faces": isolated}
+
+
+def _unmirror(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, resolution: int) -> tuple[np.ndarray, int]:
+    """Reflect back (in u, about its bounding box's centre) every island the packer placed
+    mirrored (xatlas may reflect a chart, and texture.pack keeps a clear reflection), so no
+    island is mirrored as seen from outside; kept only if the packing stays overlap-free.
+
+    Returns ``(uv, islands reflected back)``.
+    """
+    from .pack import verify_packing
+
+    area = np.bincount(island, weights=signed_uv_areas(uv, faces))
+    bad = np.flatnonzero(area < 0)
+    if len(bad) == 0:
+        return uv, 0
+    out = uv.copy()
+    for k in bad:
+        v = np.unique(faces[island == k])
+        lo, hi = out[v, 0].min(), out[v, 0].max()
+        out[v, 0] = lo + hi - out[v, 0]
+    if verify_packing(out, faces, island, resolution)[0] > 0:
+        return uv, 0
+    return out, len(bad)
+
+
+def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
+    """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
+    cfg = cfg or UnwrapConfig()
+    t = {}
+    t0 = time.perf_counter()
+    prep = prepare_mesh(vertices, faces)
+    norm = charts.normalization
+    xyz = norm.apply(prep.work_vertices)
+    t["prepare"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    asg = assign_faces(xyz, prep.work_faces, chart_surfaces(charts), cfg.near_tol, cfg.far_tol)
+    area = triangle_areas(xyz, prep.work_faces)
+    comp = prep.component
+    reached = np.bincount(comp, weights=(~asg.far).astype(float), minlength=prep.n_components) > 0
+    fallback = ~reached[comp]
+    label = np.where(fallback, charts.n_charts + comp, asg.label)
+    t["assign"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    adj = face_adjacency(xyz, prep.work_faces)
+    label, smoothed = smooth_borders(label, adj, cfg.smooth_passes)
+    label, clean_stats = clean_labels(label, area, comp, adj, cfg.min_fraction)
+    clean_stats["smoothed_faces"] = smoothed
+    reg = regions(label, adj)
+    t["clean"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    fstats = {"region_splits": 0, "cut_edges": 0}
+    islands, whole = whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
+    fstats["whole_components"] = len(whole)
+    t["whole"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    order = np.argsort(reg, kind="stable")
+    bounds = np.searchsorted(reg[order], np.arange(int(reg.max()) + 2))
+    for r in range(int(reg.max()) + 1):
+        sel = order[bounds[r]:bounds[r + 1]]
+        if comp[sel[0]] in whole:
+            continue
+        islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
+    t["flatten"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    relax_stats = relax_islands([isl for isl in islands if isl.label != WHOLE], cfg)
+    t["relax"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    slit_stats = slit_islands([isl for isl in islands if isl.label != WHOLE], cfg)
+    t["slits"] = time.perf_counter() - t0
+
+    islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), comp)
+    fstats["whole_preferred"] = swapped
+
+    t0 = time.perf_counter()
+    islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
+    t["split"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    # every island counter-clockwise like the input's winding (no island mirrored as seen
+    # from outside): an island whose faces all turned clockwise is reflected in u
+    mirrored = 0
+    for isl in islands:
+        if signed_uv_areas(isl.uv, isl.faces).sum() < 0:
+            isl.uv = isl.uv * np.array([-1.0, 1.0])
+            mirrored += 1
+    offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
+    all_uv = np.concatenate([isl.uv for isl in islands])
+    all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
+    all_island = np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands])
+    packing = pack_islands(all_uv, all_faces, all_island, resolution=cfg.resolution, padding=cfg.padding)
+    packed_uv, unmirrored = _unmirror(packing.uv, all_faces, all_island, cfg.resolution)
+    t["pack"] = time.perf_counter() - t0
+
+    mesh, face_island, out_stats = _output_mesh(prep, islands, packed_uv, offsets)
+    total = float(area.sum())
+    stats = {
+        "prepare": prep.stats,
+        "assignment": {**asg.stats, "far_area_fraction": float(area[asg.far].sum() / total),
+                       "fallback_components": int((~reached).sum()),
+                       "fallback_faces": int(fallback.sum()),
+                       "fallback_area_fraction": float(area[fallback].sum() / total)},
+        "regions": clean_stats,
+        "islands": len(islands),
+        "flatten": fstats,
+        "relax": relax_stats,
+        "slits": slit_stats,
+        "splits": split_stats,
+        "pack": {"utilization": packing.utilization, "packer": packing.packer, "scale": packing.scale,
+                 "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
+                 "padding": packing.padding},
+        **out_stats,
+        "islands_reflected": mirrored,
+        "islands_unmirrored_after_packing": unmirrored,
+        "config": asdict(cfg),
+        "timings": t,
+    }
+    return Unwrap(mesh, face_island, stats)

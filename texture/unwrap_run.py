@@ -1,0 +1,126 @@
+"""``mna unwrap`` after the fit: the input mesh file + a run's charts -> ``OUT/mesh.*`` + ``OUT/unwrap.json``.
+
+``load_unwrap_input`` reads the user's mesh with its own vertex list (an OBJ's ``v``
+lines in file order, not split by its texture coordinates) and validates it before
+anything is written. ``unwrap_to_folder`` unwraps it with the charts of ``RUN/charts.npz``
+(:func:`texture.unwrap.unwrap_mesh`), writes the textured OBJ/MTL/PNG/GLB through
+:func:`texture.export.export_textured`, measures the result with the one harness
+(:func:`texture.harness.measure`, reference = the input mesh, unit-ball frame of the
+fit) and writes ``OUT/unwrap.json`` last (atomically).
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mna.atomic import write_json
+from mna.errors import InputError
+
+from .charts import load_charts
+from .export import export_textured
+from .harness import measure
+from .meshprep import validate_mesh
+from .pipeline import TEXTURES, make_texture
+from .textures import check_size, source_colors
+from .unwrap import UnwrapConfig, unwrap_mesh
+
+UNWRAP_JSON = "unwrap.json"
+
+
+@dataclass
+class UnwrapInput:
+    """The user's mesh: ``mesh`` (trimesh, as read), ``vertices (V,3)``, ``faces (F,3)``,
+    ``had_uv``: the file carried texture coordinates (they are replaced)."""
+
+    mesh: object
+    vertices: np.ndarray
+    faces: np.ndarray
+    had_uv: bool
+    path: str
+
+
+def load_unwrap_input(path: str | os.PathLike) -> UnwrapInput:
+    """Read and validate a mesh file; ``InputError`` (one line) on anything unusable."""
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"mesh file not found: {path}")
+    kw = {"maintain_order": True} if path.suffix.lower() == ".obj" else {}
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False, **kw)
+    except Exception as exc:  # trimesh raises many types on unreadable files
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read mesh {path.name}: {detail}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise InputError(f"{path.name} holds no triangle faces")
+    vertices, faces = validate_mesh(mesh.vertices, mesh.faces, path.name)
+    uv = getattr(mesh.visual, "uv", None)
+    return UnwrapInput(mesh, vertices, faces, uv is not None and len(uv) > 0, str(path))
+
+
+def _bake_source(inp: UnwrapInput):
+    """The input as trimesh reads it by default, with its colours or texture (an OBJ read with
+    its own vertex order, as unwrapping needs, loses its texture visuals)."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(inp.path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types on unreadable files
+        raise InputError(f"cannot read {inp.path} for --texture bake: {exc}") from None
+    return mesh
+
+
+def check_options(texture: str, size, padding) -> tuple[int, int]:
+    """Validated ``(size, padding)``; raises ``InputError`` naming the option."""
+    if texture not in TEXTURES:
+        raise InputError(f"unknown texture {texture!r}; choose from {', '.join(TEXTURES)}")
+    size = check_size(size)
+    try:
+        pad = int(str(padding).strip())
+    except ValueError:
+        raise InputError(f"--padding must be a non-negative integer, got {padding!r}") from None
+    if pad < 0:
+        raise InputError(f"--padding must be a non-negative integer, got {padding!r}")
+    return size, pad
+
+
+def unwrap_to_folder(inp: UnwrapInput, run: str | os.PathLike, out: str | os.PathLike, texture: str = "checker",
+                     size: int | str = 2048, padding: int | str = 8, square_size: float | None = None,
+                     cfg: UnwrapConfig | None = None, extra: dict | None = None) -> dict:
+    """Unwrap ``inp`` with ``RUN``'s charts into ``OUT``; returns the ``unwrap.json`` content."""
+    size, pad = check_options(texture, size, padding)
+    charts = load_charts(Path(run) / "charts.npz")
+    bake_source = None
+    if texture == "bake":
+        bake_source = _bake_source(inp)
+        source_colors(bake_source)  # fail before the slow part when there is nothing to bake
+    cfg = cfg or UnwrapConfig()
+    cfg.resolution, cfg.padding = size, pad
+    t0 = time.perf_counter()
+    result = unwrap_mesh(inp.vertices, inp.faces, charts, cfg)
+    t1 = time.perf_counter()
+    norm = charts.normalization
+    source = None
+    if texture == "bake":
+        source = bake_source.copy()
+        source.vertices = norm.apply(bake_source.vertices)
+    image = make_texture(texture, result.mesh.transformed(norm), size, pad, source, square_size)
+    t2 = time.perf_counter()
+    out = Path(out)
+    paths = export_textured(out, result.mesh, image)
+    t3 = time.perf_counter()
+    metrics = measure(result.mesh, reference=inp.mesh, normalization=norm)
+    timings = {**{f"unwrap_{k}": v for k, v in result.stats.pop("timings").items()},
+               "unwrap_total": t1 - t0, "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
+    doc = {"input": str(Path(inp.path).resolve()), "run": str(Path(run).resolve()),
+           "input_uv_replaced": inp.had_uv, "texture": texture, "size": size, "padding": pad,
+           "normalization": norm.to_json(), "charts": charts.n_charts,
+           **result.stats, "uv_metrics": metrics.summary, "timings": timings, "files": paths,
+           **(extra or {})}
+    write_json(out / UNWRAP_JSON, doc)
+    return doc
