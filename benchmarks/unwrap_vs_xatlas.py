@@ -30,7 +30,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mna.atomic import write_text  # noqa: E402
+from mnacore.atomic import write_text  # noqa: E402
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
@@ -86,7 +86,7 @@ def _xatlas_rows(inp, norm, size: int) -> tuple[dict, dict]:
 
 
 def run_one(mesh: Path, work: Path, steps: int, size: int, reuse: bool) -> dict:
-    from texture.charts import load_charts
+    from mnacore.charts import load_charts
     from texture.meshprep import face_components
     from texture.unwrap_run import load_unwrap_input, unwrap_to_folder
 

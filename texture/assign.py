@@ -24,7 +24,8 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 
-from .charts import ChartGrids
+from mnacore.charts import ChartGrids
+
 from .geometry import MeshProjector
 
 #: barycentric coordinates of the samples of each face: centroid + three toward the corners.

@@ -23,6 +23,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from mnacore.triangles import signed_areas
+
 from .meshprep import corner_groups
 
 
@@ -183,12 +185,6 @@ def isometric_triangle(p: np.ndarray) -> np.ndarray:
     return np.array([[0.0, 0.0], [length, 0.0], [x, y]])
 
 
-def signed_uv_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F,) signed UV area (positive = counter-clockwise)."""
-    a, b, c = uv[faces[:, 0]], uv[faces[:, 1]], uv[faces[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-
-
 #: border-pinning retries of the guarded SLIM run (texture.relax's default is 4).
 GUARD_PIN_ROUNDS = 16
 
@@ -205,7 +201,7 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     from .relax import crossing_edges, energy_excess, relax_island
 
     def ok(u):
-        return np.isfinite(u).all() and (signed_uv_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))
+        return np.isfinite(u).all() and (signed_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))
 
     free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
     if ok(free.uv):

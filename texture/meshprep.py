@@ -27,10 +27,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from mna.errors import InputError
-
-from .geometry import triangle_areas
-from .uvmesh import weld_ids
+from mnacore.errors import InputError
+from mnacore.triangles import triangle_areas
+from mnacore.uvmesh import weld_ids
 
 #: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
 WELD_TOL = 1e-9

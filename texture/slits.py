@@ -18,13 +18,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from mna import distortion as D
+from mnacore import distortion as D
+from mnacore.triangles import signed_areas, triangle_areas
 
 from .distortion_faces import face_geometry
-from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, signed_uv_areas, tutte
-from .geometry import triangle_areas
+from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, tutte
 from .relax import RelaxConfig, energy_excess
-
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
 MAX_MISSES = 2
@@ -88,7 +87,7 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
 def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
     """Tutte then SLIM at the isometric scale; None if the Tutte embedding is not valid."""
     uv = tutte(xyz, faces)
-    signed = signed_uv_areas(uv, faces)
+    signed = signed_areas(uv, faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
         return None
     uv *= np.sqrt(triangle_areas(xyz, faces).sum() / signed.sum())

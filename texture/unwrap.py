@@ -33,16 +33,24 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from mnacore.charts import ChartGrids
+from mnacore.triangles import signed_areas, triangle_areas
+from mnacore.uvmesh import UVMesh, weld_ids
+
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
-from .charts import ChartGrids
-from .flatten import signed_uv_areas
-from .geometry import triangle_areas
 from .meshprep import prepare_mesh
 from .pack import pack_islands
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
-from .unwrap_islands import (WHOLE, Island, flatten_region, prefer_whole, refine_islands, relax_islands, slit_islands,
-                             whole_components)
-from .uvmesh import UVMesh, weld_ids
+from .unwrap_islands import (
+    WHOLE,
+    Island,
+    flatten_region,
+    prefer_whole,
+    refine_islands,
+    relax_islands,
+    slit_islands,
+    whole_components,
+)
 
 
 @dataclass
@@ -140,29 +148,6 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
     return mesh, face_island, {"isolated_degenerate_faces": isolated}
 
 
-def _unmirror(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, resolution: int) -> tuple[np.ndarray, int]:
-    """Reflect back (in u, about its bounding box's centre) every island the packer placed
-    mirrored (xatlas may reflect a chart, and texture.pack keeps a clear reflection), so no
-    island is mirrored as seen from outside; kept only if the packing stays overlap-free.
-
-    Returns ``(uv, islands reflected back)``.
-    """
-    from .pack import verify_packing
-
-    area = np.bincount(island, weights=signed_uv_areas(uv, faces))
-    bad = np.flatnonzero(area < 0)
-    if len(bad) == 0:
-        return uv, 0
-    out = uv.copy()
-    for k in bad:
-        v = np.unique(faces[island == k])
-        lo, hi = out[v, 0].min(), out[v, 0].max()
-        out[v, 0] = lo + hi - out[v, 0]
-    if verify_packing(out, faces, island, resolution)[0] > 0:
-        return uv, 0
-    return out, len(bad)
-
-
 def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
     """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
     cfg = cfg or UnwrapConfig()
@@ -225,7 +210,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     # from outside): an island whose faces all turned clockwise is reflected in u
     mirrored = 0
     for isl in islands:
-        if signed_uv_areas(isl.uv, isl.faces).sum() < 0:
+        if signed_areas(isl.uv, isl.faces).sum() < 0:
             isl.uv = isl.uv * np.array([-1.0, 1.0])
             mirrored += 1
     offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
@@ -233,7 +218,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
     all_island = np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands])
     packing = pack_islands(all_uv, all_faces, all_island, resolution=cfg.resolution, padding=cfg.padding)
-    packed_uv, unmirrored = _unmirror(packing.uv, all_faces, all_island, cfg.resolution)
+    packed_uv = packing.uv  # the packer never mirrors an island (texture.pack)
     t["pack"] = time.perf_counter() - t0
 
     mesh, face_island, out_stats = _output_mesh(prep, islands, packed_uv, offsets)
@@ -255,7 +240,6 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
                  "padding": packing.padding},
         **out_stats,
         "islands_reflected": mirrored,
-        "islands_unmirrored_after_packing": unmirrored,
         "config": asdict(cfg),
         "timings": t,
     }

@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import write_json, write_text
-from mna.errors import InputError
+from mnacore.atomic import write_json, write_text
+from mnacore.errors import InputError
+from mnacore.frame import Normalization
 
 from .compare import SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, table
 from .export import read_back
 from .harness import measure
 from .unwrap_run import UNWRAP_JSON, load_unwrap_input
-from .uvmesh import Normalization
 from .xatlas_uv import XatlasOptions
 
 

@@ -10,8 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .flatten import cut_to_disk, isometric_triangle, relax_disk, signed_uv_areas, split_pinched, tutte
-from .geometry import triangle_areas
+from mnacore.triangles import signed_areas, triangle_areas
+
+from .flatten import cut_to_disk, isometric_triangle, relax_disk, split_pinched, tutte
 from .meshprep import face_components
 from .parallel import parallel_map
 from .relax import RelaxConfig, energy_excess
@@ -114,7 +115,7 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
                 uv[disk.faces[0]] = isometric_triangle(p[disk.source][disk.faces[0]])
             else:
                 uv = tutte(p[disk.source], disk.faces)
-            if not np.isfinite(uv).all() or (signed_uv_areas(uv, disk.faces) <= 0).any():
+            if not np.isfinite(uv).all() or (signed_areas(uv, disk.faces) <= 0).any():
                 raise RuntimeError("Tutte embedding folded (numerically)")
         except (RuntimeError, ValueError, KeyError, IndexError):
             if depth <= 0:
@@ -124,7 +125,7 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
             continue
         stats["cut_edges"] += disk.cut_edges
         xyz_d = p[disk.source]
-        area3, area_uv = triangle_areas(xyz_d, disk.faces).sum(), signed_uv_areas(uv, disk.faces).sum()
+        area3, area_uv = triangle_areas(xyz_d, disk.faces).sum(), signed_areas(uv, disk.faces).sum()
         uv *= np.sqrt(area3 / area_uv)
         out.append(Island(disk.faces, uv, xyz_d, work_faces[sel], vid[src[cv]][disk.source], label))
     return out
@@ -232,7 +233,7 @@ def slit_islands(islands: list[Island], cfg) -> dict:
 def atlas_distortion(islands: list[Island]) -> float:
     """DESIGN's ``distortion_metric`` of all islands together (UV-area weighted, the harness's
     formula: ``2 sqrt(E[tr g] E[tr g^-1]) - 4``, scale-free)."""
-    from mna import distortion as D
+    from mnacore import distortion as D
 
     from .distortion_faces import face_geometry
 

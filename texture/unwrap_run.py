@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mna.atomic import write_json
-from mna.errors import InputError
+from mnacore.atomic import write_json
+from mnacore.charts import load_charts
+from mnacore.errors import InputError
 
-from .charts import load_charts
 from .export import export_textured
 from .harness import measure
 from .meshprep import validate_mesh

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mna.errors import MnaError
+from mnacore.errors import MnaError
 
 
 def register(subparsers) -> None:
@@ -47,7 +47,7 @@ def _fit_args(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def run_unwrap(args: argparse.Namespace) -> int:
-    from texture.charts import load_charts
+    from mnacore.charts import load_charts
     from texture.unwrap_run import check_options, load_unwrap_input, unwrap_to_folder
 
     # everything is validated before anything is written

@@ -9,17 +9,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from texture_helpers import CENTER, SCALE, sphere_charts
 
 from mna import shapes
-from texture.charts import ChartGrids
-from texture.flatten import boundary_loop_count, euler_characteristic, signed_uv_areas
+from mnacore.charts import ChartGrids
+from mnacore.frame import Normalization, unit_ball_normalization
+from mnacore.triangles import signed_areas
+from texture.flatten import boundary_loop_count, euler_characteristic
 from texture.harness import measure
 from texture.meshprep import prepare_mesh
 from texture.regions import clean_labels, face_adjacency, regions
 from texture.unwrap import UnwrapConfig, unwrap_mesh
-from texture.uvmesh import unit_ball_normalization
-from texture_helpers import sphere_charts, SCALE, CENTER
-from texture.uvmesh import Normalization
 
 FAST = UnwrapConfig(resolution=512, padding=2, slim_iterations=100)
 
@@ -95,7 +95,7 @@ def test_torus_and_genus2_become_disks_without_flips(name):
     res = unwrap_mesh(mesh.vertices, mesh.faces, far_chart(mesh), FAST)
     check_faithful(mesh, res)
     assert all(t == (1, 1) for t in island_topology(res))
-    areas = signed_uv_areas(res.mesh.uv, res.mesh.faces)
+    areas = signed_areas(res.mesh.uv, res.mesh.faces)
     assert (areas > 0).all()  # counter-clockwise in UV like the input's winding: no flip, no mirror
     m = measure(res.mesh, reference=mesh).summary
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
@@ -170,12 +170,12 @@ def test_nonmanifold_duplicated_and_degenerate_input_keep_every_face():
     check_faithful(mesh, res)
     out = res.mesh
     assert len(np.unique(out.faces[-2])) == 3  # the repeated index gets distinct copies
-    np.testing.assert_array_equal(signed_uv_areas(out.uv, out.faces[-2:]), 0.0)  # degenerate in UV too
+    np.testing.assert_array_equal(signed_areas(out.uv, out.faces[-2:]), 0.0)  # degenerate in UV too
     m = measure(out, reference=mesh).summary
     assert m["degenerate_uv_faces"] == 2 and np.isfinite(m["distortion_metric"]) and m["flipped_faces"] == 0
     good = np.ones(len(f), bool)
     good[-2:] = False
-    assert (signed_uv_areas(out.uv, out.faces[good]) > 0).all()
+    assert (signed_areas(out.uv, out.faces[good]) > 0).all()
 
 
 def test_clean_labels_merges_specks_into_the_longest_border_neighbour():
@@ -229,14 +229,14 @@ def test_slits_lower_the_energy_of_a_cap_and_keep_a_disk():
     xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
     assert is_disk(faces)
     uv = tutte(xyz, faces)
-    uv *= np.sqrt(trimesh.triangles.area(xyz[faces]).sum() / signed_uv_areas(uv, faces).sum())
+    uv *= np.sqrt(trimesh.triangles.area(xyz[faces]).sum() / signed_areas(uv, faces).sum())
     cfg = RelaxConfig(iterations=100, min_gain=1e-4)
     from texture.flatten import relax_disk
     uv, _ = relax_disk(xyz, uv, faces, cfg)
     before = energy_excess(xyz, uv, faces)
     r = slit_island(xyz, faces, uv, cfg, target=0.05, max_slits=4)
     assert r.slits >= 1 and r.excess_after < 0.8 * before
-    assert is_disk(r.faces) and (signed_uv_areas(r.uv, r.faces) > 0).all()
+    assert is_disk(r.faces) and (signed_areas(r.uv, r.faces) > 0).all()
     np.testing.assert_array_equal(xyz[r.source][r.faces].shape, (len(faces), 3, 3))
 
 

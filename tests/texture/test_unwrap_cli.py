@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from texture_helpers import write_sphere_run
 
 from mna import shapes
 from mna.cli import main
 from texture.export import read_back
 from texture.harness import measure
-from texture_helpers import write_sphere_run
 
 SMALL = ["--size", "256", "--padding", "2"]
 
