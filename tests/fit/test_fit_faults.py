@@ -5,7 +5,6 @@ traceback), and what is (not) left on disk.
 """
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import signal
