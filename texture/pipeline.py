@@ -95,8 +95,14 @@ def reference_points(mesh, points, norm: Normalization, count: int = 25000, seed
     from .geometry import sample_surface
 
     if mesh is not None:
-        pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), count, seed)
-        return norm.apply(pts)
+        vertices = np.asarray(mesh.vertices, np.float64)
+        if 1e-30 <= norm.scale <= 1e30:
+            pts, _ = sample_surface(vertices, np.asarray(mesh.faces), count, seed)
+            return norm.apply(pts)
+        # triangle areas of a 1e200 (or 1e-200) mesh overflow (underflow) in its own units;
+        # area-uniform sampling is scale-invariant, so sample it in the unit-ball frame
+        pts, _ = sample_surface(norm.apply(vertices), np.asarray(mesh.faces), count, seed)
+        return pts
     if points is not None:
         return norm.apply(points)
     return None

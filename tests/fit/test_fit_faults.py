@@ -208,6 +208,21 @@ def test_tiny_and_huge_meshes_fit(tmp_path, scale):
     assert np.isfinite(pts).all() and 0.01 * scale < np.abs(pts).max() < 3 * scale
 
 
+def test_export_reference_points_of_a_huge_mesh():
+    """`mna export` samples the input surface: in a 1e200 mesh's own units its areas overflow."""
+    import trimesh
+
+    from mna.data import Normalization
+    from texture.pipeline import reference_points
+
+    mesh = shapes.sphere(subdivisions=1)
+    for scale in (1e-200, 1e200):
+        big = trimesh.Trimesh(mesh.vertices * scale, mesh.faces, process=False)
+        pts = reference_points(big, None, Normalization.fit(big.vertices), count=200)
+        assert np.isfinite(pts).all()
+        np.testing.assert_allclose(np.linalg.norm(pts, axis=1).max(), 1.0, atol=0.05)
+
+
 def test_unit_ball_is_overflow_safe_and_relative():
     from mnacore.errors import InputError
     from mnacore.frame import Normalization, unit_ball, unit_ball_normalization
