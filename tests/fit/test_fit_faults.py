@@ -212,7 +212,7 @@ def test_export_reference_points_of_a_huge_mesh():
     """`mna export` samples the input surface: in a 1e200 mesh's own units its areas overflow."""
     import trimesh
 
-    from mna.data import Normalization
+    from mnacore.frame import Normalization
     from texture.pipeline import reference_points
 
     mesh = shapes.sphere(subdivisions=1)
