@@ -21,7 +21,10 @@ from mnacore.atomic import write_text
 #: fit metrics shown in the report (metrics.json keys), in order
 METRIC_KEYS = ("chamfer_pcl", "fscore_pcl", "chamfer_mesh", "fscore_mesh", "distortion_metric",
                "distortion_conformal", "distortion_area")
-GLB_FILES = (("ours", "mesh.glb"), ("xatlas", "xatlas/mesh.glb"))
+#: the subfolder `mna demo` unwraps the input mesh into
+UNWRAP_DIR = "unwrap"
+GLB_FILES = (("your mesh, mna unwrap", "unwrap/mesh.glb"), ("your mesh, xatlas", "unwrap/xatlas/mesh.glb"),
+             ("reconstruction, mna export", "mesh.glb"), ("reconstruction, xatlas", "xatlas/mesh.glb"))
 
 
 @dataclass
@@ -87,6 +90,9 @@ FIT_NOTE = ("The neural atlas itself, before export: its charts are continuous m
             "(chamfer and F-score against the input, F-score at 1 % of the diameter, in percent), and its "
             "distortions are those of the charts' own parameterisation. The exported UV atlas's distortions "
             "are the ones in the comparison above (after trimming, relaxation and packing).")
+UNWRAP_NOTE = ("The input mesh itself, with its own vertices and faces, UV-mapped two ways: by mna unwrap "
+               "(each face assigned to the neural chart that covers it, islands cut to disks, flattened and "
+               "packed) and by xatlas with its default options.")
 FIGURE_NOTE = ("Rows: our atlas (mna) and xatlas on the same mesh; columns: views. Textured renders show a "
                "checkerboard whose squares have the same size on the surface for both methods, so distortion "
                "shows as squares changing size or shape. In the island image every UV island has its own "
@@ -105,18 +111,43 @@ def _render_note(run_dir: Path) -> str | None:
             f"side {_fmt(data.get('checker_square_size'))} in 3D for every method.")
 
 
-def _markdown(run_dir: Path, title: str, figures: list[Path]) -> str:
-    parts = [f"# {title}", ""]
+def _figures(run_dir: Path, folder: Path, figures: list[Path]) -> list[str]:
+    parts = []
     for fig in figures:
         parts += [f"![{fig.stem}]({fig.relative_to(run_dir).as_posix()})", ""]
     if figures:
         parts += [FIGURE_NOTE, ""]
-    note = _render_note(run_dir)
-    if note:
-        parts += [note, ""]
+    note = _render_note(folder)
+    return parts + ([note, ""] if note else [])
+
+
+def _islands(folder: Path) -> str:
+    """``, 5 islands (xatlas: 17)`` from a folder's compare.json, or ''."""
+    path = folder / "compare.json"
+    if not path.is_file():
+        return ""
+    rows = {r.get("method"): r for r in json.loads(path.read_text()).get("methods", []) if isinstance(r, dict)}
+    if "mna" not in rows:
+        return ""
+    xa = f" (xatlas: {rows['xatlas']['charts']})" if "xatlas" in rows else ""
+    return f": {rows['mna']['charts']} UV islands{xa}"
+
+
+def _markdown(run_dir: Path, title: str, figures: list[Path]) -> str:
+    parts = [f"# {title}", ""]
+    unwrap = run_dir / UNWRAP_DIR
+    if (unwrap / "compare.json").is_file():  # the input mesh itself, UV-mapped (mna unwrap)
+        figs = sorted((unwrap / "renders").glob("figure*.png"))
+        parts += [f"## Your mesh, UV-mapped by mna unwrap and by xatlas{_islands(unwrap)}", "", UNWRAP_NOTE, ""]
+        parts += _figures(run_dir, unwrap, figs)
+        table = compare_table(unwrap)
+        parts += [table, ""] if table else []
     table = compare_table(run_dir)
-    if table:
-        parts += ["## UV atlas: ours vs xatlas, measured the same way", "", table, ""]
+    if figures or table:
+        parts += [f"## The neural atlas's reconstruction, UV-mapped by mna export and by xatlas{_islands(run_dir)}",
+                  ""]
+        parts += _figures(run_dir, run_dir, figures)
+        parts += [table, ""] if table else []
     metrics = _metrics_table(run_dir)
     if metrics:
         parts += ["## Neural atlas fit (before export)", "", FIT_NOTE, "", metrics, ""]

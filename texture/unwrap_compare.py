@@ -3,7 +3,7 @@
 Rows (one harness, :func:`texture.harness.measure`, reference = the input mesh, the
 fit's unit-ball frame from ``unwrap.json``):
 
-- ``mna_unwrap``: ``OUT/mesh.obj`` as written by ``mna unwrap`` (time: the unwrap after the fit);
+- ``mna``: ``OUT/mesh.obj`` as written by ``mna unwrap`` (time: the unwrap after the fit);
 - ``xatlas``: xatlas with its default chart options (our padding and resolution) on the
   input mesh as ``mna unwrap`` read it (its own vertex list, so xatlas sees no artificial
   boundaries), written to ``OUT/xatlas/`` like an export;
@@ -20,7 +20,7 @@ from mnacore.atomic import write_json, write_text
 from mnacore.errors import InputError
 from mnacore.frame import Normalization
 
-from .compare import SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, table
+from .compare import LEGEND, SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, table
 from .export import read_back
 from .harness import measure
 from .unwrap_run import UNWRAP_JSON, load_unwrap_input
@@ -43,7 +43,7 @@ def compare_unwrap(run: str | Path, sweep: bool = True, size: int = 2048, paddin
     harness_kw = {"reference": reference, "normalization": norm, "reference_is_closed": False}
     ours = read_back(run / "mesh.obj")
     t = info["timings"]
-    rows = [_row("mna_unwrap", "input", measure(ours, **harness_kw).summary, t["unwrap_total"],
+    rows = [_row("mna", "input", measure(ours, **harness_kw).summary, t["unwrap_total"],
                  {"islands": info["islands"]})]
     opts = XatlasOptions(resolution=size, padding=padding)
     rows.append(_xatlas_row("xatlas", "input", inp.vertices, inp.faces, opts, run / "xatlas", harness_kw, size,
@@ -65,8 +65,8 @@ def compare_unwrap(run: str | Path, sweep: bool = True, size: int = 2048, paddin
 def to_markdown(result: dict) -> str:
     a = result["unwrap"]["assignment"]
     parts = [f"# compare (unwrap): {result['run']}", "",
-             "Ours (`mna unwrap`) and xatlas on the same input mesh; one harness (texture.harness.measure), "
-             "unit-ball frame, reference: the input mesh. Time = UV method only (ours: after the fit).", "",
+             "Ours (`mna unwrap`) and xatlas on the same input mesh, measured the same way; reference: the "
+             "input mesh. Time: the UV method alone (ours: after the fit).", "", LEGEND, "",
              table(result["methods"]), "",
              f"Face assignment: {a['far_faces']} faces farther than {a['far_tol']} from every chart "
              f"({100 * a['far_area_fraction']:.1f} % of the area, nearest-chart labels); fallback components "

@@ -53,9 +53,9 @@ def test_compare_uses_the_same_input_mesh_for_xatlas(unwrapped):
     _, out, mesh = unwrapped
     assert main(["compare", str(out), "--no-sweep", *SMALL]) == 0
     rows = {r["method"]: r for r in json.loads((out / "compare.json").read_text())["methods"]}
-    assert set(rows) == {"mna_unwrap", "xatlas"}
-    assert rows["mna_unwrap"]["faces"] == rows["xatlas"]["faces"] == len(mesh.faces)
-    assert rows["mna_unwrap"]["mesh"] == rows["xatlas"]["mesh"] == "input"
+    assert set(rows) == {"mna", "xatlas"}
+    assert rows["mna"]["faces"] == rows["xatlas"]["faces"] == len(mesh.faces)
+    assert rows["mna"]["mesh"] == rows["xatlas"]["mesh"] == "input"
     assert (out / "xatlas" / "mesh.obj").is_file() and (out / "compare.md").is_file()
 
 
