@@ -67,36 +67,73 @@ def from_corners(vertices, faces, uv, uv_faces) -> UVMesh:
     return make_uv_mesh(vertices, inverse.reshape(-1, 3), uv)
 
 
-def make_uv_mesh(vertices, faces, uv, *, name: str = "mesh") -> UVMesh:
-    """Validate and build a :class:`UVMesh`; raises ``InputError`` naming what is wrong.
+def validate_mesh(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices float64 (V, 3), faces int64 (F, 3))``, or ``InputError`` naming what is wrong.
 
-    Rejected: wrong shapes, out-of-range indices, non-finite positions or UVs (NaN/inf),
-    faces repeating a vertex, zero faces.
+    Rejected: wrong shapes, no faces, non-integer or out-of-range indices, NaN or infinite
+    positions of vertices that faces use (unused vertices are not looked at).
     """
-    vertices = np.asarray(vertices, dtype=np.float64)
+    vertices = np.asarray(vertices, np.float64)
     faces = np.asarray(faces)
-    if uv is None:
-        raise InputError(f"{name} has no UVs (texture coordinates); UV-map it first, e.g. `mna uv`")
-    uv = np.asarray(uv, dtype=np.float64)
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise InputError(f"{name}: vertices must have shape (V, 3), got {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
-        raise InputError(f"{name}: faces must have shape (F, 3) with F > 0, got {faces.shape}")
+        raise InputError(f"{name} has no triangle faces (faces shape {faces.shape})")
     if not np.issubdtype(faces.dtype, np.integer):
         raise InputError(f"{name}: faces must be integers, got {faces.dtype}")
     faces = faces.astype(np.int64)
-    if uv.shape != (len(vertices), 2):
-        raise InputError(f"{name}: uv must have shape ({len(vertices)}, 2) (one per vertex), got {uv.shape}")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise InputError(f"{name}: face indices out of range [0, {len(vertices)})")
-    if not np.isfinite(vertices).all():
+    if not np.isfinite(vertices[np.unique(faces)]).all():
         raise InputError(f"{name}: vertex positions contain NaN or inf")
+    return vertices, faces
+
+
+def make_uv_mesh(vertices, faces, uv, *, name: str = "mesh") -> UVMesh:
+    """Validate and build a :class:`UVMesh`; raises ``InputError`` naming what is wrong.
+
+    Rejected: what :func:`validate_mesh` rejects, UVs of the wrong shape or not finite,
+    faces repeating a vertex.
+    """
+    if uv is None:
+        raise InputError(f"{name} has no UVs (texture coordinates); UV-map it first, e.g. `mna uv`")
+    vertices, faces = validate_mesh(vertices, faces, name)
+    uv = np.asarray(uv, dtype=np.float64)
+    if uv.shape != (len(vertices), 2):
+        raise InputError(f"{name}: uv must have shape ({len(vertices)}, 2) (one per vertex), got {uv.shape}")
     if not np.isfinite(uv).all():
         raise InputError(f"{name}: UVs contain NaN or inf ({int((~np.isfinite(uv)).any(1).sum())} vertices)")
     repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
     if repeated.any():
-        raise InputError(f"{name}: {int(repeated.sum())} degenerate faces repeat a vertex (first: face {int(np.argmax(repeated))})")
+        raise InputError(f"{name}: {int(repeated.sum())} degenerate faces repeat a vertex "
+                         f"(first: face {int(np.argmax(repeated))})")
     return UVMesh(vertices, faces, uv)
+
+
+def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
+    """Read a triangle mesh file with trimesh (no processing): ``trimesh.Trimesh``, or ``InputError``
+    for a missing file, a wrong format (the first bytes), no faces or NaN / overflowing positions.
+
+    ``keep_vertex_order``: an OBJ keeps its own ``v`` list and order (trimesh otherwise makes
+    one vertex per distinct ``v/vt`` pair, which is what UV readers want); its texture
+    visuals are then not read.
+    """
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"mesh file not found: {path}")
+    check_file_format(path)
+    kw = {"maintain_order": True} if keep_vertex_order and path.suffix.lower() == ".obj" else {}
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False, **kw)
+    except Exception as exc:  # trimesh raises many types on unreadable files
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read mesh {path.name}: {detail}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise InputError(f"{path} holds no triangle faces")
+    check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)
+    return mesh
 
 
 def weld_ids(vertices: np.ndarray, tol: float = WELD_TOL) -> np.ndarray:
@@ -116,19 +153,8 @@ def load_uv_mesh(path: str | os.PathLike, *, require_uv: bool = True):
 
     The ``UVMesh`` is ``None`` when the file has no UVs and ``require_uv`` is False.
     """
-    import trimesh
-
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"mesh file not found: {path}")
-    check_file_format(path)
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types on unreadable files
-        raise InputError(f"cannot read mesh {path}: {exc}") from exc
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError(f"{path} holds no triangle faces")
-    check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)
+    mesh = read_mesh(path)
     uv = getattr(mesh.visual, "uv", None)
     if uv is None or len(uv) != len(mesh.vertices):
         if require_uv:

@@ -44,21 +44,10 @@ def _mtl_texture(obj_path: Path) -> Path | None:
 
 def load_uv_mesh(path: str | Path) -> UVMesh:
     """Load a triangle mesh with (optional) per-vertex UVs and its texture file, if named."""
-    import trimesh
-
-    from mnacore.frame import check_coordinates, check_file_format
+    from mnacore.uvmesh import read_mesh
 
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"mesh not found: {path}")
-    check_file_format(path)
-    try:
-        mesh = trimesh.load(str(path), force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types for unreadable files
-        raise ValueError(f"cannot read mesh {path}: {exc}") from None
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise ValueError(f"mesh {path} has no triangles")
-    check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)
+    mesh = read_mesh(path)
     uv = getattr(mesh.visual, "uv", None)
     if uv is not None and len(uv) != len(mesh.vertices):
         uv = None

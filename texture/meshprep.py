@@ -29,7 +29,7 @@ from scipy.sparse.csgraph import connected_components
 
 from mnacore.errors import InputError
 from mnacore.triangles import triangle_areas
-from mnacore.uvmesh import weld_ids
+from mnacore.uvmesh import validate_mesh, weld_ids
 
 #: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
 WELD_TOL = 1e-9
@@ -66,25 +66,6 @@ class PreparedMesh:
     @property
     def n_components(self) -> int:
         return int(self.component.max()) + 1 if len(self.component) else 0
-
-
-def validate_mesh(vertices, faces, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
-    """(vertices float64 (V,3), faces int64 (F,3)) or ``InputError`` naming the problem."""
-    vertices = np.asarray(vertices, np.float64)
-    faces = np.asarray(faces)
-    if vertices.ndim != 2 or vertices.shape[1] != 3:
-        raise InputError(f"{name}: vertices must have shape (V, 3), got {vertices.shape}")
-    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
-        raise InputError(f"{name} has no triangle faces (faces shape {faces.shape})")
-    if not np.issubdtype(faces.dtype, np.integer):
-        raise InputError(f"{name}: faces must be integers, got {faces.dtype}")
-    faces = faces.astype(np.int64)
-    if faces.min() < 0 or faces.max() >= len(vertices):
-        raise InputError(f"{name}: face indices out of range [0, {len(vertices)})")
-    used = vertices[np.unique(faces)]
-    if not np.isfinite(used).all():
-        raise InputError(f"{name}: vertex positions contain NaN or inf")
-    return vertices, faces
 
 
 def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) -> np.ndarray:

@@ -20,10 +20,10 @@ import numpy as np
 from mnacore.atomic import write_json
 from mnacore.charts import load_charts
 from mnacore.errors import InputError
+from mnacore.uvmesh import read_mesh, validate_mesh
 
 from .export import export_textured
 from .harness import measure
-from .meshprep import validate_mesh
 from .pipeline import TEXTURES, make_texture
 from .textures import check_size, source_colors
 from .unwrap import UnwrapConfig, unwrap_mesh
@@ -45,19 +45,8 @@ class UnwrapInput:
 
 def load_unwrap_input(path: str | os.PathLike) -> UnwrapInput:
     """Read and validate a mesh file; ``InputError`` (one line) on anything unusable."""
-    import trimesh
-
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"mesh file not found: {path}")
-    kw = {"maintain_order": True} if path.suffix.lower() == ".obj" else {}
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False, **kw)
-    except Exception as exc:  # trimesh raises many types on unreadable files
-        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"cannot read mesh {path.name}: {detail}") from None
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError(f"{path.name} holds no triangle faces")
+    mesh = read_mesh(path, keep_vertex_order=True)
     vertices, faces = validate_mesh(mesh.vertices, mesh.faces, path.name)
     uv = getattr(mesh.visual, "uv", None)
     return UnwrapInput(mesh, vertices, faces, uv is not None and len(uv) > 0, str(path))
