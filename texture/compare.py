@@ -76,6 +76,10 @@ def harness_context(run: str | os.PathLike) -> dict:
     the run both use this, so they report the same numbers for the same file.
     """
     run = Path(run)
+    if (run / "unwrap.json").is_file():  # an `mna unwrap` folder
+        from .unwrap_run import unwrap_harness_context
+
+        return unwrap_harness_context(run)
     mesh_in, _ = load_input(run)
     return {"reference": mesh_in, "normalization": load_charts(run / "charts.npz").normalization,
             "reference_is_closed": mesh_in is None}
@@ -84,7 +88,8 @@ def harness_context(run: str | os.PathLike) -> dict:
 def run_folder_of(mesh_path: str | os.PathLike) -> Path | None:
     """The run folder a mesh file belongs to (``RUN/mesh.obj``, ``RUN/xatlas/mesh.glb``), or None."""
     for folder in Path(mesh_path).resolve().parents[:2]:
-        if (folder / "charts.npz").is_file() and (folder / "config.yaml").is_file():
+        if (folder / "unwrap.json").is_file() or ((folder / "charts.npz").is_file()
+                                                  and (folder / "config.yaml").is_file()):
             return folder
     return None
 

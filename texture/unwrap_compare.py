@@ -14,13 +14,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
 from mnacore.atomic import write_json, write_text
 from mnacore.errors import InputError
-from mnacore.frame import Normalization
 
-from .compare import LEGEND, SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, table
+from .compare import LEGEND, SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, harness_context, table
 from .export import read_back
 from .harness import measure
 from .unwrap_run import UNWRAP_JSON, load_unwrap_input
@@ -29,7 +26,6 @@ from .xatlas_uv import XatlasOptions
 
 def compare_unwrap(run: str | Path, sweep: bool = True, size: int = 2048, padding: int = 8) -> dict:
     """Write ``OUT/compare.json`` and ``OUT/compare.md`` for an unwrap folder; returns the JSON content."""
-    import trimesh
 
     run = Path(run)
     try:
@@ -37,10 +33,8 @@ def compare_unwrap(run: str | Path, sweep: bool = True, size: int = 2048, paddin
     except (OSError, ValueError) as exc:
         raise InputError(f"cannot read {run / UNWRAP_JSON}: {exc}") from None
     inp = load_unwrap_input(info["input"])
-    norm = Normalization(np.asarray(info["normalization"]["center"], np.float64),
-                         float(info["normalization"]["scale"]))
-    reference = trimesh.Trimesh(inp.vertices, inp.faces, process=False)
-    harness_kw = {"reference": reference, "normalization": norm, "reference_is_closed": False}
+    harness_kw = harness_context(run)  # the same reference and frame as `mna uv-metrics` on these files
+    norm = harness_kw["normalization"]
     ours = read_back(run / "mesh.obj")
     t = info["timings"]
     rows = [_row("mna", "input", measure(ours, **harness_kw).summary, t["unwrap_total"],

@@ -52,6 +52,27 @@ def load_unwrap_input(path: str | os.PathLike) -> UnwrapInput:
     return UnwrapInput(mesh, vertices, faces, uv is not None and len(uv) > 0, str(path))
 
 
+def unwrap_harness_context(out: str | os.PathLike) -> dict:
+    """The harness's keyword arguments for an unwrap folder: the input mesh as the reference
+    (its own vertex list, so its open borders are its real boundary) in the fit's unit ball."""
+    import json
+
+    import trimesh
+
+    from mnacore.frame import Normalization
+
+    out = Path(out)
+    try:
+        info = json.loads((out / UNWRAP_JSON).read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read {out / UNWRAP_JSON}: {exc}") from None
+    inp = load_unwrap_input(info["input"])
+    norm = Normalization(np.asarray(info["normalization"]["center"], np.float64),
+                         float(info["normalization"]["scale"]))
+    return {"reference": trimesh.Trimesh(inp.vertices, inp.faces, process=False), "normalization": norm,
+            "reference_is_closed": False}
+
+
 def _bake_source(inp: UnwrapInput):
     """The input as trimesh reads it by default, with its colours or texture (an OBJ read with
     its own vertex order, as unwrapping needs, loses its texture visuals)."""

@@ -57,6 +57,13 @@ def test_compare_uses_the_same_input_mesh_for_xatlas(unwrapped):
     assert rows["mna"]["faces"] == rows["xatlas"]["faces"] == len(mesh.faces)
     assert rows["mna"]["mesh"] == rows["xatlas"]["mesh"] == "input"
     assert (out / "xatlas" / "mesh.obj").is_file() and (out / "compare.md").is_file()
+    # uv-metrics on the folder's files: the same reference and frame, so the same numbers
+    for method, path in (("mna", out / "mesh.glb"), ("xatlas", out / "xatlas" / "mesh.obj")):
+        summary = out.parent / f"{method}_metrics.json"
+        assert main(["uv-metrics", str(path), "-o", str(summary)]) == 0
+        alone = json.loads(summary.read_text())
+        for key in ("charts", "seam_length", "surface_area", "distortion_metric", "mirrored_area_percent"):
+            assert alone[key] == pytest.approx(rows[method][key], rel=1e-5, abs=1e-9), (method, key)
 
 
 def _write(path: Path, text: str) -> Path:
