@@ -3,12 +3,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from mnacore import configs
 from mnacore.errors import MnaError
 
 
@@ -258,46 +259,8 @@ def to_dict(cfg: Any) -> dict:
 
 
 def from_dict(data: dict, cls: type = FitConfig, where: str = "config") -> Any:
-    """Build a (nested) dataclass from a dict, rejecting unknown keys and wrong types."""
-    if not isinstance(data, dict):
-        raise MnaError(f"{where} must be a mapping, got {type(data).__name__}")
-    known = {f.name: f for f in fields(cls)}
-    unknown = sorted(set(data) - set(known))
-    if unknown:
-        raise MnaError(f"unknown key(s) in {where}: {', '.join(unknown)}")
-    kwargs = {}
-    defaults = cls()
-    for name, value in data.items():
-        default = getattr(defaults, name)
-        if dataclasses.is_dataclass(default):
-            kwargs[name] = from_dict(value, type(default), f"{where}.{name}")
-            continue
-        kwargs[name] = _coerce(value, default, f"{where}.{name}")
-    return cls(**kwargs)
-
-
-def _coerce(value: Any, default: Any, where: str) -> Any:
-    if default is None or value is None:
-        if value is not None and not isinstance(value, (int, float, str)):
-            raise MnaError(f"{where} has the wrong type: {type(value).__name__}")
-        return value
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise MnaError(f"{where} must be true or false, got {value!r}")
-        return value
-    if isinstance(default, int) and not isinstance(value, bool) and isinstance(value, int):
-        return value
-    if isinstance(default, float) and not isinstance(value, bool) and isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(default, float) and isinstance(value, str):
-        # YAML 1.1 reads 1e-3 (no dot) as a string
-        try:
-            return float(value)
-        except ValueError:
-            pass
-    if isinstance(default, str) and isinstance(value, str):
-        return value
-    raise MnaError(f"{where} must be {type(default).__name__}, got {value!r}")
+    """Build a (nested) config dataclass from a mapping, strictly (:func:`mnacore.configs.from_dict`)."""
+    return configs.from_dict(data, cls, where)
 
 
 def save_yaml(path: str | Path, data: dict) -> None:

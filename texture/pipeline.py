@@ -5,6 +5,7 @@ in :mod:`texture.compare`.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from pathlib import Path
@@ -185,7 +186,11 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.stats.pop("timings").items()},
                "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
     timings["export_total"] = t3 - t0
-    result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax),
+    # the resolved export configuration: every option of the atlas stages, so the export can
+    # be reproduced from atlas.json alone (with the run's charts.npz)
+    config = {"texture": texture, "size": size, "padding": int(padding), "square_size": square_size,
+              "atlas": dataclasses.asdict(cfg)}
+    result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax), "config": config,
               "checker_square_size": square_size_for(atlas.mesh_unit, size, square_size), "atlas": atlas.stats,
               "uv_metrics": metrics.summary, "timings": timings, "files": paths}
     write_json(run / "atlas.json", result)

@@ -248,3 +248,25 @@ def test_export_bad_max_islands(fresh_sphere_run, capsys):
     code = main(["export", str(fresh_sphere_run), "--max-islands", "-1"])
     assert "--max-islands" in _one_error_line(capsys, code)
     assert _files(fresh_sphere_run) == before
+
+
+def test_atlas_json_holds_the_config_that_reproduces_the_export(fresh_sphere_run, tmp_path):
+    import shutil
+
+    from mnacore.configs import from_dict
+    from texture.atlas import AtlasConfig
+    from texture.pipeline import export_run
+    from texture.relax import RelaxConfig
+
+    assert main(["export", str(fresh_sphere_run), "--size", "256", "--padding", "3", "--max-islands", "3",
+                 "--relax", "2"]) == 0
+    cfg = json.loads((fresh_sphere_run / "atlas.json").read_text())["config"]
+    atlas_cfg = from_dict(cfg["atlas"], AtlasConfig, "atlas.json config.atlas")
+    assert atlas_cfg == AtlasConfig(resolution=256, padding=3, max_islands=3, relax=RelaxConfig(iterations=2))
+    again = tmp_path / "again"
+    shutil.copytree(fresh_sphere_run, again)
+    for name in ("mesh.obj", "mesh.glb", "atlas.json"):
+        (again / name).unlink()
+    export_run(again, texture=cfg["texture"], size=cfg["size"], padding=cfg["padding"],
+               square_size=cfg["square_size"], max_islands=atlas_cfg.max_islands, relax=atlas_cfg.relax.iterations)
+    assert (again / "mesh.obj").read_bytes() == (fresh_sphere_run / "mesh.obj").read_bytes()
