@@ -158,7 +158,8 @@ def reconstruct_run(checkpoint: str | Path, input_path: str | Path, out: str | P
         raise MnaError("this checkpoint encodes images: give --reference MESH_OR_CLOUD (frame and metrics)")
     surface = load_surface(reference or input_path)
     inputs = _encoder_input(cfg, input_path, surface, cfg.seed)
-    out = prepare_output(out, resume=False, overwrite=overwrite, keep=[input_path, *([reference] if reference else [])])
+    out = prepare_output(out, resume=False, overwrite=overwrite, keep=[input_path, *([reference] if reference else [])],
+                         can_resume=False)
     fit_cfg = cfg.fit_config(latent=0)  # the baked atlas is a plain per-shape one
     fit_cfg.preset = "reconstruct"
     t0 = time.perf_counter()

@@ -40,9 +40,10 @@ CHARTS = "charts.npz"
 CHARTS_PLY = "charts.ply"
 
 
-def prepare_output(out: str | Path, resume: bool, overwrite: bool = False, keep=()) -> Path:
+def prepare_output(out: str | Path, resume: bool, overwrite: bool = False, keep=(), can_resume: bool = True) -> Path:
     """The run folder of a fit: see :func:`mna.runfolder.prepare_run_folder`."""
-    return prepare_run_folder(out, resume=resume, overwrite=overwrite, keep=keep, resume_file=CHECKPOINT)
+    return prepare_run_folder(out, resume=resume, overwrite=overwrite, keep=keep, resume_file=CHECKPOINT,
+                              can_resume=can_resume)
 
 
 def read_metrics(run: str | Path) -> dict:

@@ -43,7 +43,7 @@ def _listing(paths: list[Path], limit: int = 4) -> str:
 
 def prepare_run_folder(out: str | Path, *, resume: bool = False, overwrite: bool = False,
                        keep: Iterable[str | Path] = (), resume_file: str | None = None,
-                       extra_outputs: Iterable[str] = ()) -> Path:
+                       extra_outputs: Iterable[str] = (), can_resume: bool = False) -> Path:
     """Check (and create or empty) the run folder ``out`` for a command about to write it.
 
     Call it after every input and option is validated: it is the first thing that changes
@@ -57,6 +57,7 @@ def prepare_run_folder(out: str | Path, *, resume: bool = False, overwrite: bool
         keep: paths never removed and not counted as content (the command's own input
             when it lies inside ``out``, as in ``mna demo``).
         extra_outputs: more names or glob patterns the calling command writes.
+        can_resume: the command has ``--resume`` (the refusal then mentions it).
 
     Raises:
         MnaError: ``out`` is a file; ``--resume`` without ``resume_file``; a non-empty folder
@@ -78,8 +79,9 @@ def prepare_run_folder(out: str | Path, *, resume: bool = False, overwrite: bool
         kept = {Path(k).resolve() for k in keep}
         entries = [p for p in out.iterdir() if p.resolve() not in kept]
         if entries and not overwrite:
-            raise MnaError(f"run folder {out} is not empty ({_listing(entries)}); use --resume to continue "
-                           f"its fit, --overwrite to replace it, or another folder")
+            how = "--resume to continue its fit, --overwrite" if can_resume else "--overwrite"
+            raise MnaError(f"run folder {out} is not empty ({_listing(entries)}); use {how} to replace it, "
+                           f"or another folder")
         foreign = [p for p in entries if not is_run_output(p.name, extra_outputs)]
         if foreign:
             raise MnaError(f"--overwrite: {out} holds files mna does not write ({_listing(foreign)}); "

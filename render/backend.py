@@ -13,6 +13,8 @@ import logging
 import os
 from typing import NamedTuple
 
+from mnacore.errors import MnaError
+
 log = logging.getLogger("mna.render")
 
 #: preference order of the RGB variants we render with
@@ -58,7 +60,8 @@ def import_mitsuba():
         try:
             import mitsuba
         except ImportError as exc:  # pragma: no cover - mitsuba is a dependency
-            raise RuntimeError(f"Mitsuba 3 is not installed ({exc}); pip install mitsuba") from None
+            # a missing backend is the user's environment, not a bug: one line, exit 2
+            raise MnaError(f"Mitsuba 3 is not installed ({exc}); pip install mitsuba") from None
         _mi = mitsuba
     return _mi
 

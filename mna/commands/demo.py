@@ -39,7 +39,7 @@ def register(subparsers) -> None:
 
 def run_demo(args: argparse.Namespace) -> int:
     from mna import shapes
-    from mna.cli import main
+    from mna.cli import EXIT_INTERRUPTED, EXIT_TERMINATED, main
     from mna.config import MAX_CHARTS, MAX_SEED, check_int
     from mna.runfolder import prepare_run_folder
     from mnacore.atomic import atomic_path
@@ -73,6 +73,8 @@ def run_demo(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         code = main(argv)
         timings[name] = time.perf_counter() - t0
+        if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+            return code  # Ctrl-C / SIGTERM: the stage said what it saved
         if code != 0:
             raise MnaError(f"demo stage '{name}' failed with exit code {code}")
     from render.report import atlas_summary, write_report
