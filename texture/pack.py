@@ -34,11 +34,13 @@ from functools import cached_property
 
 import numpy as np
 
-from mnacore.triangles import signed_areas, triangle_areas
+from mnacore.triangles import triangle_areas
 
-from .islands import edge_keys, edge_use_counts, half_edges
+from .mirrors import mirrored_islands, turn_back
+from .outlines import island_outlines
 from .parallel import parallel_map
 from .raster import iter_hits
+from .similarity import similarity_fit
 
 #: largest allowed distance (texels) between xatlas's placement and the re-placed island.
 MAX_FIT_RESIDUAL = 2.0
@@ -46,8 +48,6 @@ MAX_FIT_RESIDUAL = 2.0
 SOLID_FACE_REL = 1e-2
 #: scale step while no placement is valid, and relative width at which bisection stops.
 SHRINK, BISECT_TOL = 0.95, 0.005
-#: a reflection is chosen only when it fits this much better than the best rotation.
-REFLECTION_GAIN = 0.5
 #: xatlas calls per placement to get every island the right way round (see :func:`_attempt`)
 MIRROR_TRIES = 5
 #: scale steps (FINE_SHRINK each) tried for a packing with no island mirrored before the
@@ -95,51 +95,6 @@ class Packing:
     seconds: float
     attempts: int
     packer: str = "xatlas"
-
-
-@dataclass
-class Similarity:
-    """``dst ~ scale * src @ rotation.T + translation``; ``rotation`` orthogonal, det +-1."""
-
-    scale: float
-    rotation: np.ndarray
-    translation: np.ndarray
-
-
-def similarity_fit(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None) -> Similarity:
-    """Weighted least-squares similarity ``src (P,2) -> dst (P,2)`` (Umeyama 1991, eq. 40-42).
-
-    With centred points ``x = src - mu_s``, ``y = dst - mu_d`` and ``H = sum w x y^T = U S V^T``:
-    ``R = V diag(1, d) U^T``, ``s = tr(diag(1, d) S) / sum w |x|^2``. ``d = 1`` is the
-    unconstrained optimum; when that ``R`` is a reflection (det -1) it is kept only if its
-    residual is under ``REFLECTION_GAIN`` times that of the best rotation (``d = -1``), i.e.
-    only when the target really is mirrored. Zero total weight or zero spread
-    (a degenerate island) gives the identity rotation, scale 1, centroid-to-centroid.
-    """
-    src, dst = np.asarray(src, np.float64), np.asarray(dst, np.float64)
-    w = np.ones(len(src)) if weights is None else np.asarray(weights, np.float64)
-    if len(src) == 0 or w.sum() <= 0:
-        return Similarity(1.0, np.eye(2), np.zeros(2) if len(src) == 0 else dst.mean(0) - src.mean(0))
-    w = w / w.sum()
-    mu_s, mu_d = w @ src, w @ dst
-    x, y = src - mu_s, dst - mu_d
-    var = float(w @ (x * x).sum(1))
-    if var <= 1e-30:
-        return Similarity(1.0, np.eye(2), mu_d - mu_s)
-    U, S, Vt = np.linalg.svd((x * w[:, None]).T @ y)
-
-    def fit(d):
-        D = np.diag([1.0, d])
-        R = Vt.T @ D @ U.T
-        s = float(S @ np.diag(D)) / var
-        return float(w @ ((s * x @ R.T - y) ** 2).sum(1)), s, R
-
-    err, s, R = fit(1.0)  # the unconstrained optimum R = V U^T
-    if np.linalg.det(R) < 0:  # it is a reflection: keep it only if it clearly beats the best rotation
-        err_rot, s_rot, R_rot = fit(-1.0)
-        if not err < REFLECTION_GAIN * err_rot:
-            s, R = s_rot, R_rot
-    return Similarity(s, R, mu_d - s * mu_s @ R.T)
 
 
 def _xatlas_pack(uv, faces, island, resolution, padding, tpu, options: dict | None = None):
@@ -234,77 +189,6 @@ class _Islands:
         return self._xatlas[2]
 
 
-def _border_loops(faces: np.ndarray) -> list[np.ndarray] | None:
-    """Closed border loops (vertex indices, in the faces' winding) of one island, or None
-    where the border is not a set of simple loops (a vertex with two border edges out)."""
-    he = half_edges(faces)
-    border = he[edge_use_counts(edge_keys(np.arange(int(faces.max()) + 1), faces)) == 1]
-    if len(border) == 0 or len(np.unique(border[:, 0])) != len(border):
-        return None
-    succ = dict(zip(border[:, 0].tolist(), border[:, 1].tolist()))
-    loops, seen = [], set()
-    for start in border[:, 0].tolist():
-        if start in seen:
-            continue
-        loop, v = [], start
-        while v is not None and v not in seen:
-            seen.add(v)
-            loop.append(v)
-            v = succ.get(v)
-        if v != start:
-            return None
-        loops.append(np.array(loop, np.int64))
-    return loops
-
-
-def _loop_area(p: np.ndarray) -> float:
-    """Signed area of the closed polygon ``p (N, 2)`` (shoelace)."""
-    return 0.5 * float(p[:, 0] @ np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) @ p[:, 1])
-
-
-def _without_straight_runs(uv: np.ndarray, loop: np.ndarray, sin_tol: float = 1e-8) -> np.ndarray:
-    """``loop`` without the vertices inside straight runs (e.g. along a cut line): ear clipping
-    makes zero-area triangles there, and xatlas's conservative rasteriser (``bilinear``) spends
-    up to 20x longer on such slivers than on the island's own faces."""
-    if len(loop) <= 3:
-        return loop
-    p = uv[loop]
-    a, b = p - np.roll(p, 1, axis=0), np.roll(p, -1, axis=0) - p
-    cross = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])  # |a| |b| sin(turn)
-    straight = cross <= sin_tol * np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
-    return loop if straight.sum() > len(loop) - 3 else loop[~straight]
-
-
-def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray) -> np.ndarray:
-    """(F', 3) faces over the same vertices covering the same UV region as ``faces``: per
-    island, its border loops ear-clipped (mapbox_earcut; the largest loop is the outer
-    border, the others holes). An island whose border is not simple loops, or whose
-    outline's area differs from its own (UVs that overlap themselves), keeps its faces."""
-    import mapbox_earcut
-
-    out = []
-    order = np.argsort(island, kind="stable")
-    for f in np.split(faces[order], np.cumsum(np.bincount(island, minlength=int(island.max()) + 1))[:-1]):
-        if len(f) == 0:
-            continue
-        loops = _border_loops(f)
-        tri = None
-        if loops is not None:
-            areas = [abs(_loop_area(uv[loop])) for loop in loops]
-            outer = int(np.argmax(areas))
-            loops = [loops[outer]] + [loop for i, loop in enumerate(loops) if i != outer]
-            loops = [_without_straight_runs(uv, loop) for loop in loops]
-            verts = np.concatenate(loops)
-            ends = np.cumsum([len(loop) for loop in loops]).astype(np.uint32)
-            tri = verts[mapbox_earcut.triangulate_float64(np.ascontiguousarray(uv[verts]), ends).astype(np.int64)]
-            tri = tri.reshape(-1, 3)
-            own = float(triangle_areas(uv, f).sum())
-            if len(tri) == 0 or abs(float(triangle_areas(uv, tri).sum()) - own) > 1e-9 * own:
-                tri = None
-        out.append(f if tri is None else tri)
-    return np.concatenate(out) if out else faces
-
-
 def _place(isl: _Islands, atlas, tpu: float) -> tuple[np.ndarray, float, list[int]]:
     """Texel positions (V, 2) re-placed rigidly at ``tpu``, the largest deviation from xatlas
     (texels), and the islands placed mirrored (a reflection of their UVs fits xatlas's)."""
@@ -329,50 +213,6 @@ def _place(isl: _Islands, atlas, tpu: float) -> tuple[np.ndarray, float, list[in
         if np.linalg.det(fit.rotation) < 0:
             turned.append(k)
     return placed, worst, turned
-
-
-def _unmirror(px: np.ndarray, axis: int = 0) -> np.ndarray:
-    """``px`` reflected across the line through its bounding box's centre, normal to ``axis``.
-
-    xatlas's 90-degree chart "rotation" is a transpose, a reflection: a texture would read
-    mirrored there. Reflecting once more turns the island into a proper rotation of itself
-    with the same bounding box, so it stays in the box xatlas reserved for it; only its
-    gutter to the neighbours has to be checked again (:func:`_gutter_clashes`).
-    """
-    out = px.copy()
-    out[:, axis] = px[:, axis].min() + px[:, axis].max() - px[:, axis]
-    return out
-
-
-def _gutter_clashes(isl: _Islands, px: np.ndarray, islands: list[int], resolution: int, gap: int) -> list[int]:
-    """Those of ``islands`` with a texel of another island within ``gap`` texels (a square
-    window), at ``resolution``."""
-    from scipy import ndimage
-
-    from .raster import face_id_image
-
-    face, _ = face_id_image(px[isl.faces] / resolution, resolution, resolution)
-    label = np.where(face >= 0, isl.island[np.maximum(face, 0)], -1)
-    size, top = 2 * gap + 1, np.iinfo(np.int64).max
-    high = ndimage.maximum_filter(label, size=size, mode="constant", cval=-1)
-    low = ndimage.minimum_filter(np.where(label < 0, top, label), size=size, mode="constant", cval=top)
-    near = (label >= 0) & ((high != label) | (low != label))
-    return sorted(set(np.unique(label[near]).tolist()) & set(islands))
-
-
-def _turned_fit(isl: _Islands, px: np.ndarray, mirrored: list[int], resolution: int, padding: int) -> np.ndarray | None:
-    """``px`` with the mirrored islands turned back inside their boxes, keeping half the
-    gutter (each reflected across its box's vertical line, or where that comes too close,
-    its horizontal one), or None."""
-    gap = max(1, padding // 2)
-    px = px.copy()
-    for k in mirrored:
-        px[isl.verts[k]] = _unmirror(px[isl.verts[k]], 0)
-    clash = _gutter_clashes(isl, px, mirrored, resolution, gap)
-    for k in clash:  # back to xatlas's outline, then reflected across the other axis
-        v = isl.verts[k]
-        px[v] = _unmirror(_unmirror(px[v], 0), 1)
-    return None if clash and _gutter_clashes(isl, px, clash, resolution, gap) else px
 
 
 def _inside_square(px: np.ndarray, near: np.ndarray, atlas) -> np.ndarray:
@@ -402,7 +242,7 @@ def _attempt(isl: _Islands, resolution, padding, tpu, options, unmirror: bool = 
     transpose turns them the right way round (a transpose of a reflection is a rotation);
     an island xatlas then leaves alone is handed over unmirrored again. After
     ``MIRROR_TRIES`` xatlas calls the islands still mirrored are turned back inside the box
-    xatlas gave them (:func:`_unmirror`), if half the gutter remains.
+    xatlas gave them (:func:`texture.mirrors.reflect_in_box`), if half the gutter remains.
     """
     flip = np.zeros(isl.n, bool)
     for _ in range(MIRROR_TRIES if unmirror else 1):
@@ -416,7 +256,7 @@ def _attempt(isl: _Islands, resolution, padding, tpu, options, unmirror: bool = 
             break
         flip[mirrored] ^= True
     else:
-        px = _turned_fit(isl, px, mirrored, resolution, padding)
+        px = turn_back(isl, px, mirrored, resolution, padding)
         if px is None:
             return None
     # xatlas keeps charts `padding` texels apart and each island moved <= residual: if two
@@ -626,13 +466,6 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
         util, tpu, px, _ = best
     return Packing(px / resolution, tpu / resolution, tpu, resolution, padding, util, 0,
                    time.perf_counter() - t0, attempts, packer)
-
-
-def mirrored_islands(isl: _Islands, px: np.ndarray) -> list[int]:
-    """Islands whose placement ``px`` (V, 2) reverses their UVs' orientation (a reflection)."""
-    before = np.bincount(isl.island, weights=signed_areas(isl.uv, isl.faces), minlength=isl.n)
-    after = np.bincount(isl.island, weights=signed_areas(px, isl.faces), minlength=isl.n)
-    return np.flatnonzero(before * after < 0).tolist()
 
 
 def _without_mirrors(isl: _Islands, resolution: int, padding: int, best: tuple, max_attempts: int) -> tuple | None:

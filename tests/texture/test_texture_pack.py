@@ -14,12 +14,16 @@ from mna.cli import main
 from mnacore.charts import load_charts, save_charts
 from mnacore.frame import Normalization
 from mnacore.grid import grid_faces
+from mnacore.triangles import triangle_areas
 from texture.atlas import AtlasConfig, _merge, build_atlas
 from texture.export import read_back
 from texture.islands import uv_islands
-from texture.pack import pack_islands, similarity_fit, verify_packing
+from texture.mirrors import mirrored_islands
+from texture.outlines import island_outlines
+from texture.pack import pack_islands, verify_packing
 from texture.raster import coverage_count
 from texture.relax import RelaxConfig
+from texture.similarity import similarity_fit
 from texture.trim import trim_charts
 
 
@@ -175,12 +179,12 @@ def _grid_island(n=12, hole=False, shift=(0.0, 0.0)):
 def test_island_outline_is_the_border_ear_clipped(hole):
     uv, faces = _grid_island(hole=hole)
     island = np.zeros(len(faces), np.int64)
-    out = pack.island_outlines(uv, faces, island)
+    out = island_outlines(uv, faces, island)
     # straight runs along the grid's sides are dropped: a rectangle is 4 corners, 2 triangles;
     # with a square hole 8 corners, ear-clipped into n + 2h - 2 = 8 triangles
     assert len(out) == (8 if hole else 2)
     assert len(np.unique(out)) == (8 if hole else 4)
-    assert pack.triangle_areas(uv, out).sum() == pytest.approx(144.0 - (4.0 if hole else 0.0), rel=1e-12)
+    assert triangle_areas(uv, out).sum() == pytest.approx(144.0 - (4.0 if hole else 0.0), rel=1e-12)
     # the same texels: rasterised (centres on an edge count) the two triangulations cover the same centres
     from texture.raster import face_id_image
 
@@ -193,11 +197,11 @@ def test_island_outline_keeps_faces_where_uvs_overlap_or_border_pinches():
     folded = uv.copy()
     folded[6] += [2.5, 0.0]  # an interior vertex dragged over the border: the UVs overlap themselves
     island = np.zeros(len(faces), np.int64)
-    np.testing.assert_array_equal(pack.island_outlines(folded, faces, island), faces)
+    np.testing.assert_array_equal(island_outlines(folded, faces, island), faces)
     # two squares touching at one corner, one island: the border is not simple loops
     uv2 = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [2, 1], [2, 2], [1, 2]], float)
     bow = np.array([[0, 1, 2], [0, 2, 3], [2, 4, 5], [2, 5, 6]])
-    np.testing.assert_array_equal(pack.island_outlines(uv2, bow, np.zeros(4, np.int64)), bow)
+    np.testing.assert_array_equal(island_outlines(uv2, bow, np.zeros(4, np.int64)), bow)
 
 
 def test_packing_through_outlines_matches_packing_faces():
@@ -259,8 +263,8 @@ def test_packed_islands_are_never_mirrored():
     uv, faces, island = np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
     isl = pack._Islands(uv, faces, island)
     raw = pack.plan_packing(uv, faces, island, resolution=256, padding=2)
-    assert pack.mirrored_islands(isl, raw.uv), "the plan (turns allowed) mirrors some island"
+    assert mirrored_islands(isl, raw.uv), "the plan (turns allowed) mirrors some island"
     packed = pack.pack_islands(uv, faces, island, resolution=256, padding=2)
-    assert pack.mirrored_islands(isl, packed.uv) == []
+    assert mirrored_islands(isl, packed.uv) == []
     assert verify_packing(packed.uv, faces, island, 256)[0] == 0
     assert packed.utilization > 0.3
