@@ -1,12 +1,10 @@
 """Exported assets as viewers read them: material, normals, precision, winding, slivers, the validator."""
 from __future__ import annotations
 
-import json
-import struct
-
 import numpy as np
 import pytest
 import trimesh
+from texture_helpers import glb_attribute, glb_json
 
 from mnacore.grid import grid_faces
 from mnacore.uvmesh import make_uv_mesh, weld_ids
@@ -19,26 +17,6 @@ from texture.normals import shading_normals
 from texture.textures import checker_image
 from texture.trim import Piece
 from texture.xatlas_uv import XatlasOptions, unwrap
-
-
-def glb_json(path) -> dict:
-    """The JSON chunk of a GLB file (glTF 2.0 binary container)."""
-    data = open(path, "rb").read()
-    length, kind = struct.unpack_from("<I4s", data, 12)
-    assert kind == b"JSON"
-    return json.loads(data[20:20 + length])
-
-
-def glb_attribute(path, name: str) -> np.ndarray:
-    """The raw ``name`` attribute (e.g. NORMAL) of the GLB's first primitive, as stored."""
-    data = open(path, "rb").read()
-    length = struct.unpack_from("<I", data, 12)[0]
-    doc, base = json.loads(data[20:20 + length]), 20 + length + 8
-    a = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"][name]]
-    view = doc["bufferViews"][a["bufferView"]]
-    width = {"VEC3": 3, "VEC2": 2}[a["type"]]
-    offset = base + view.get("byteOffset", 0) + a.get("byteOffset", 0)
-    return np.frombuffer(data, np.float32, a["count"] * width, offset).reshape(-1, width).astype(np.float64)
 
 
 def _xatlas(mesh: trimesh.Trimesh):

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from texture_helpers import write_sphere_run
+from texture_helpers import glb_attribute, glb_json, write_sphere_run
 
 from mna import shapes
 from mna.cli import main
@@ -47,6 +47,26 @@ def test_unwrap_writes_the_input_faces_with_uvs(unwrapped):
         assert a[key] == b[key]
     for key in ("seam_length", "distortion_metric", "utilization"):
         assert a[key] == pytest.approx(b[key], rel=1e-3, abs=1e-4)
+
+
+def test_unwrapped_glb_is_an_asset_viewers_accept(unwrapped):
+    """The Khronos glTF validator: no errors, no warnings; material metallic 0 and normals present."""
+    from texture import gltf_validator
+
+    _, out, mesh = unwrapped
+    (mat,) = glb_json(out / "mesh.glb")["materials"]
+    assert mat["pbrMetallicRoughness"]["metallicFactor"] == 0.0
+    normals = glb_attribute(out / "mesh.glb", "NORMAL")
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6)
+    # a sphere: every normal points away from the centre (no face wound inward)
+    positions = glb_attribute(out / "mesh.glb", "POSITION")
+    centre = np.asarray(mesh.vertices).mean(0)
+    assert ((positions - centre) * normals).sum(1).min() > 0
+    reason = gltf_validator.available()
+    if reason:
+        pytest.skip(reason)
+    report = gltf_validator.validate(out / "mesh.glb")
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
 
 
 def test_compare_uses_the_same_input_mesh_for_xatlas(unwrapped):

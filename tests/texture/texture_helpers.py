@@ -10,6 +10,8 @@ Analytic metric: radial stretch ``theta_max``, tangential ``theta_max sin(theta)
 """
 from __future__ import annotations
 
+import json
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -91,3 +93,22 @@ def fresh_sphere_run(tmp_path) -> Path:
 def icosphere() -> trimesh.Trimesh:
     return shapes.sphere(radius=1.0, subdivisions=3)
 
+
+def glb_json(path) -> dict:
+    """The JSON chunk of a GLB file (glTF 2.0 binary container)."""
+    data = open(path, "rb").read()
+    length, kind = struct.unpack_from("<I4s", data, 12)
+    assert kind == b"JSON"
+    return json.loads(data[20:20 + length])
+
+
+def glb_attribute(path, name: str) -> np.ndarray:
+    """The raw ``name`` attribute (e.g. NORMAL) of the GLB's first primitive, as stored."""
+    data = open(path, "rb").read()
+    length = struct.unpack_from("<I", data, 12)[0]
+    doc, base = json.loads(data[20:20 + length]), 20 + length + 8
+    a = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"][name]]
+    view = doc["bufferViews"][a["bufferView"]]
+    width = {"VEC3": 3, "VEC2": 2}[a["type"]]
+    offset = base + view.get("byteOffset", 0) + a.get("byteOffset", 0)
+    return np.frombuffer(data, np.float32, a["count"] * width, offset).reshape(-1, width).astype(np.float64)
