@@ -31,6 +31,8 @@ from .raster import face_id_image
 SQUARE_SIZE = 0.1
 #: a generated texture must give each square at least this many texels (finer aliases).
 MIN_TEXELS_PER_SQUARE = 4
+#: a source texture smaller than this (texels a side) carries no image to bake
+MIN_SOURCE_TEXELS = 4
 #: default checker colours (light, dark), sRGB; square (0, 0) at the UV origin is the light one.
 CHECKER_COLORS = ((0.92, 0.92, 0.92), (0.25, 0.32, 0.45))
 
@@ -185,6 +187,10 @@ def source_colors(source):
     visual = source.visual
     if getattr(visual, "kind", None) == "texture" and getattr(visual, "uv", None) is not None:
         img = getattr(visual.material, "image", None) or getattr(visual.material, "baseColorTexture", None)
+        if img is not None and min(img.size) < MIN_SOURCE_TEXELS:
+            # trimesh stands a 2 x 2 placeholder in for a texture it could not find
+            raise InputError(f"the input mesh's texture is a {img.size[0]} x {img.size[1]} placeholder: its material "
+                             "file or image is missing (check the .mtl beside the .obj and the image it names)")
         if img is not None:
             arr = np.asarray(img.convert("RGB"), np.float64) / 255.0
             return None, np.asarray(visual.uv, np.float64), arr

@@ -114,6 +114,18 @@ def test_bake_without_colours_is_rejected(icosphere, sphere_atlas):
         bake(sphere_atlas, trimesh.Trimesh(icosphere.vertices, icosphere.faces), 64)
 
 
+def test_bake_refuses_a_missing_texture(tmp_path):
+    """An OBJ with UVs whose .mtl is missing: trimesh makes a 2 x 2 placeholder image, which
+    would bake as flat grey; the user is told the material file is missing instead."""
+    obj = tmp_path / "m.obj"
+    obj.write_text("mtllib missing.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    source = trimesh.load(obj, force="mesh", process=False)
+    from texture.textures import source_colors
+
+    with pytest.raises(InputError, match="placeholder.*missing"):
+        source_colors(source)
+
+
 def test_bake_from_textured_source(icosphere, sphere_atlas):
     # the source: the same sphere with its own (xatlas) UVs and a texture = colour of its 3D point
     src_img = np.zeros((256, 256, 3))
