@@ -11,29 +11,24 @@ fit's unit-ball frame from ``unwrap.json``):
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from mnacore.atomic import write_json, write_text
-from mnacore.errors import InputError
 
-from .compare import LEGEND, SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, harness_context, table
+from .compare import LEGEND, SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, table
 from .export import read_back
 from .harness import measure
-from .unwrap_run import UNWRAP_JSON, load_unwrap_input
+from .unwrap_run import load_unwrap_input, read_unwrap_json, unwrap_harness_context
 from .xatlas_uv import XatlasOptions
 
 
 def compare_unwrap(run: str | Path, sweep: bool = True, size: int = 2048, padding: int = 8) -> dict:
     """Write ``OUT/compare.json`` and ``OUT/compare.md`` for an unwrap folder; returns the JSON content."""
-
     run = Path(run)
-    try:
-        info = json.loads((run / UNWRAP_JSON).read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read {run / UNWRAP_JSON}: {exc}") from None
+    info = read_unwrap_json(run)
     inp = load_unwrap_input(info["input"])
-    harness_kw = harness_context(run)  # the same reference and frame as `mna uv-metrics` on these files
+    # the one harness context of an unwrap folder, as `mna uv-metrics` uses on these files
+    harness_kw = unwrap_harness_context(run, info, inp)
     norm = harness_kw["normalization"]
     ours = read_back(run / "mesh.obj")
     t = info["timings"]

@@ -52,21 +52,28 @@ def load_unwrap_input(path: str | os.PathLike) -> UnwrapInput:
     return UnwrapInput(mesh, vertices, faces, uv is not None and len(uv) > 0, str(path))
 
 
-def unwrap_harness_context(out: str | os.PathLike) -> dict:
-    """The harness's keyword arguments for an unwrap folder: the input mesh as the reference
-    (its own vertex list, so its open borders are its real boundary) in the fit's unit ball."""
+def read_unwrap_json(out: str | os.PathLike) -> dict:
+    """``OUT/unwrap.json``, or ``InputError`` naming the file."""
     import json
 
+    path = Path(out) / UNWRAP_JSON
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read {path}: {exc}") from None
+
+
+def unwrap_harness_context(out: str | os.PathLike, info: dict | None = None,
+                           inp: UnwrapInput | None = None) -> dict:
+    """The harness's keyword arguments for an unwrap folder: the input mesh as the reference
+    (its own vertex list, so its open borders are its real boundary) in the fit's unit ball.
+    ``info`` / ``inp``: the folder's unwrap.json and input, when the caller already read them."""
     import trimesh
 
     from mnacore.frame import Normalization
 
-    out = Path(out)
-    try:
-        info = json.loads((out / UNWRAP_JSON).read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read {out / UNWRAP_JSON}: {exc}") from None
-    inp = load_unwrap_input(info["input"])
+    info = info if info is not None else read_unwrap_json(out)
+    inp = inp if inp is not None else load_unwrap_input(info["input"])
     norm = Normalization(np.asarray(info["normalization"]["center"], np.float64),
                          float(info["normalization"]["scale"]))
     return {"reference": trimesh.Trimesh(inp.vertices, inp.faces, process=False), "normalization": norm,
