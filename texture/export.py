@@ -51,9 +51,9 @@ def asset_mesh(mesh: UVMesh) -> UVMesh:
     return UVMesh(mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces, uv)
 
 
-def shading(mesh: UVMesh) -> Shading:
-    """Shading normals of ``mesh`` (see :mod:`texture.normals`)."""
-    return shading_normals(mesh.vertices, mesh.faces, weld_ids(mesh.vertices))
+def shading(mesh: UVMesh, weld: np.ndarray | None = None) -> Shading:
+    """Shading normals of ``mesh`` (see :mod:`texture.normals`); ``weld``: its ``weld_ids`` if known."""
+    return shading_normals(mesh.vertices, mesh.faces, weld_ids(mesh.vertices) if weld is None else weld)
 
 
 def _fmt_rows(prefix: str, rows: np.ndarray, fmt: str = "%.9g") -> str:
@@ -120,9 +120,10 @@ def export_textured(folder: str | os.PathLike, mesh: UVMesh, image: np.ndarray, 
     paths = {"obj": folder / f"{stem}.obj", "mtl": folder / f"{stem}.mtl",
              "texture": folder / f"{stem}_texture.png", "glb": folder / f"{stem}.glb"}
     mesh = asset_mesh(mesh)
-    shade = shading(mesh)
+    weld = weld_ids(mesh.vertices)  # once, for the normals and for the open-surface test
+    shade = shading(mesh, weld)
     obj = obj_text(mesh, paths["mtl"].name, shade)
-    glb = glb_bytes(mesh, image, shade)
+    glb = glb_bytes(mesh, image, shade, open_surface(mesh.faces, weld))
     with contextlib.ExitStack() as stack:
         tmp = {k: stack.enter_context(atomic_path(p)) for k, p in paths.items() if k != "texture"}
         tmp["obj"].write_text(obj)

@@ -177,7 +177,8 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     if texture == "bake":
         source = mesh_in.copy()
         source.vertices = norm.apply(mesh_in.vertices)
-    image = make_texture(texture, atlas.mesh_unit, size, int(padding), source, square_size)
+    square = square_size_for(atlas.mesh_unit, size, square_size)  # drawn, and recorded in atlas.json
+    image = make_texture(texture, atlas.mesh_unit, size, int(padding), source, square)
     t2 = time.perf_counter()
     paths = export_textured(run, atlas.mesh, image)
     t3 = time.perf_counter()
@@ -191,7 +192,7 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     config = {"texture": texture, "size": size, "padding": int(padding), "square_size": square_size,
               "atlas": dataclasses.asdict(cfg)}
     result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax), "config": config,
-              "checker_square_size": square_size_for(atlas.mesh_unit, size, square_size), "atlas": atlas.stats,
+              "checker_square_size": square, "atlas": atlas.stats,
               "uv_metrics": metrics.summary, "timings": timings, "files": paths}
     write_json(run / "atlas.json", result)
     return result
