@@ -66,22 +66,68 @@ class AblationConfig:
 
 
 @dataclass
-class FitConfig:
-    """Everything a per-shape fit needs; saved as ``config.yaml`` beside its outputs."""
+class AtlasSettings:
+    """What a per-shape fit and a training run mean alike: the atlas, its losses and
+    ablations, and how it is inferred and measured. Declared once; :class:`FitConfig` and
+    :class:`mna.train_config.TrainConfig` extend it with their own schedules, so their YAML
+    stays flat and every shared key has one definition."""
 
-    preset: str = "fast"
-    """Name of the preset this config started from."""
+    preset: str = ""
+    """Name of the preset this config started from (each subclass sets its default)."""
     model: ModelConfig = field(default_factory=ModelConfig)
     loss: LossConfig = field(default_factory=LossConfig)
     ablation: AblationConfig = field(default_factory=AblationConfig)
+    dist_samples: int = 0
+    """Positives per chart (and item) whose Jacobian enters L_dist (0 = all, as the paper)."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    tau: float = 0.5
+    """Domain threshold on o_k = l_k / c."""
+    eta: float = 0.4
+    """c = median of l over the top eta fraction of samples."""
+    c_samples: int = 20000
+    """UV samples per chart used to estimate c (per shape at inference)."""
+    seed: int = 0
+    device: str = "auto"
+    """auto (CUDA when present), cpu or cuda."""
+    threads: int = 0
+    """torch CPU threads per process (0 = torch's default)."""
+    eval_points: int = 25000
+    """Points for Chamfer / F-score (each side)."""
+    eval_uv_samples: int = 20000
+    """UV samples per chart for the distortion metrics."""
+    grid: int = 256
+    """UV grid resolution of the extracted chart meshes."""
+
+    def validate_atlas(self, flags: dict[str, str] | None = None) -> None:
+        """Ranges of the shared keys (each subclass checks its own); errors name a key by
+        ``flags[key]`` where the user gave it as a command-line option."""
+        def name(key: str) -> str:
+            return (flags or {}).get(key, key)
+
+        validate_model(self.model, charts_name=name("model.charts"))
+        validate_loss(self.loss)
+        check_int(self.seed, name("seed"), 0, MAX_SEED)
+        check_choice(self.device, name("device"), DEVICES)
+        check_int(self.threads, name("threads"), 0, MAX_THREADS)
+        for key in ("eval_points", "eval_uv_samples", "c_samples"):
+            check_int(getattr(self, key), key, 1)
+        check_int(self.dist_samples, "dist_samples", 0)
+        check_int(self.grid, name("grid"), 2, MAX_GRID)
+        check_float(self.lr, "lr", 0, 1e3, low_open=True)
+        check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)
+        check_float(self.eta, "eta", 0, 1, low_open=True)
+
+
+@dataclass
+class FitConfig(AtlasSettings):
+    """Everything a per-shape fit needs; saved as ``config.yaml`` beside its outputs."""
+
+    preset: str = "fast"
     uv_samples: int = 5000
     """UV samples per chart per step."""
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
-    dist_samples: int = 0
-    """Positives per chart whose Jacobian enters L_dist each step (0 = all, as the paper)."""
-    lr: float = 1e-3
-    """Adam learning rate."""
     lr_decay_start: float = 1.0
     """Fraction of the run after which the lr decays (cosine); 1.0 = constant lr."""
     lr_final: float = 1.0
@@ -90,38 +136,17 @@ class FitConfig:
     """Optimisation steps (ignored for the stopping rule when ``time_budget`` is set)."""
     time_budget: float | None = None
     """Wall-clock seconds for the fit; the lr schedule then follows elapsed time."""
-    tau: float = 0.5
-    """Domain threshold on o_k = l_k / c."""
-    eta: float = 0.4
-    """c = median of l over the top eta fraction of samples."""
-    c_samples: int = 20000
-    """UV samples per chart used to estimate c."""
-    seed: int = 0
-    device: str = "auto"
-    """auto (CUDA when present), cpu or cuda."""
-    threads: int = 0
-    """torch CPU threads (0 = torch's default)."""
     checkpoint_every: int = 500
     """Write checkpoint.pt every this many steps (and at the end / on Ctrl-C)."""
     log_every: int = 25
     """Refresh the progress bar's loss read-out every this many steps."""
-    eval_points: int = 25000
-    """Points for Chamfer / F-score (each side)."""
-    eval_uv_samples: int = 20000
-    """UV samples per chart for the distortion metrics."""
-    grid: int = 256
-    """UV grid resolution of the extracted chart meshes."""
 
     def validate(self) -> "FitConfig":
         """Check every value (type, finite, range); raises ``MnaError`` naming the option or key.
 
         Called before anything is written, so a bad value leaves no run folder behind.
         """
-        validate_model(self.model)
-        validate_loss(self.loss)
-        check_int(self.seed, "--seed", 0, MAX_SEED)
-        check_choice(self.device, "--device", DEVICES)
-        check_int(self.threads, "--threads", 0, MAX_THREADS)
+        self.validate_atlas(FIT_FLAGS)
         if self.time_budget is None:
             check_int(self.steps, "--steps", 1)
         else:
@@ -130,21 +155,18 @@ class FitConfig:
                 raise MnaError(f"--time-budget must be positive, finite seconds (at most {MAX_TIME_BUDGET:.1e}), "
                                f"got {tb}")
             check_int(self.steps, "steps", 0)
-        for name in ("uv_samples", "targets", "eval_points", "eval_uv_samples", "c_samples",
-                     "checkpoint_every", "log_every"):
+        for name in ("uv_samples", "targets", "checkpoint_every", "log_every"):
             check_int(getattr(self, name), name, 1)
-        check_int(self.dist_samples, "dist_samples", 0)
-        check_int(self.grid, "--grid", 2, MAX_GRID)
-        check_float(self.lr, "lr", 0, 1e3, low_open=True)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
-        check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)
-        check_float(self.eta, "eta", 0, 1, low_open=True)
         if not isinstance(self.preset, str):
             raise MnaError(f"preset must be a string, got {self.preset!r}")
         return self
 
 
+#: config keys that `mna fit` takes as options: its errors name the option
+FIT_FLAGS = {"model.charts": "--charts", "seed": "--seed", "device": "--device", "threads": "--threads",
+             "grid": "--grid"}
 #: The charts' cost is linear in K per step (K MLPs, K x uv_samples points in the Chamfer
 #: search) and the paper uses 1-3 (25 for its ablations): 64 is far beyond any useful atlas,
 #: while 1,000 charts did not finish 20 steps in a minute and exhaust memory at extraction.

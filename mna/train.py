@@ -352,10 +352,8 @@ def load_resume_config(out: str) -> TrainConfig:
 
 
 def parser() -> argparse.ArgumentParser:
-    from mna.commands.train import add_arguments
-
     p = argparse.ArgumentParser(prog="python -m mna.train", description=__doc__.splitlines()[0])
-    add_arguments(p)
+    train_config.add_arguments(p)
     return p
 
 

@@ -8,12 +8,13 @@ every training run and every reconstruction.
 """
 from __future__ import annotations
 
+import argparse
 import copy
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from mna import config as fit_config_mod
-from mna.config import AblationConfig, FitConfig, LossConfig, ModelConfig
+from mna.config import AtlasSettings, FitConfig, ModelConfig
 from mnacore.errors import MnaError
 
 LAYOUTS = ("meshes", "shapenet", "cloth3d")
@@ -30,7 +31,7 @@ class DataConfig:
     ShapeNet) or cloth3d (preprocessed CLOTH3D++)."""
     root: str = ""
     """Dataset folder."""
-    classes: list = field(default_factory=list)
+    classes: list[str] = field(default_factory=list)
     """Class folders to use (shapenet: synset ids such as 02691156; cloth3d: tshirt, dress, ...);
     empty = every class folder that has the split file."""
     input: str = "points"
@@ -60,7 +61,7 @@ class EncoderConfig:
 
     kind: str = "pointnet"
     """pointnet (point clouds; no batch norm) or resnet18 (images; torchvision)."""
-    pointnet_widths: list = field(default_factory=lambda: [64, 128, 1024])
+    pointnet_widths: list[int] = field(default_factory=lambda: [64, 128, 1024])
     """Widths of PointNet's shared per-point MLP; the last is the max-pooled feature."""
     pretrained: bool = False
     """resnet18: start from ImageNet weights if they are already in the local torch hub cache
@@ -68,38 +69,31 @@ class EncoderConfig:
 
 
 @dataclass
-class TrainConfig:
-    """Everything a training run needs; saved as ``config.yaml`` in the training folder."""
+class TrainConfig(AtlasSettings):
+    """Everything a training run needs; saved as ``config.yaml`` in the training folder.
+
+    The atlas keys (``model``, ``loss``, ``ablation``, ``lr``, ``tau``, ...) are
+    :class:`mna.config.AtlasSettings`, declared once for fits and training alike."""
 
     preset: str = "paper"
+    model: ModelConfig = field(default_factory=lambda: ModelConfig(latent=1024, label_width=512))
+    """As a fit's, with the paper's conditional sizes: latent D = 1024, label nets 512 wide."""
     out: str = "runs/train"
     """Training folder: config.yaml, checkpoint.pt, log.csv (or TensorBoard events), metrics.json."""
-    model: ModelConfig = field(default_factory=lambda: ModelConfig(latent=1024, label_width=512))
-    loss: LossConfig = field(default_factory=LossConfig)
-    ablation: AblationConfig = field(default_factory=AblationConfig)
     encoder: EncoderConfig = field(default_factory=EncoderConfig)
     data: DataConfig = field(default_factory=DataConfig)
     uv_samples: int = 5000
     """UV samples per batch item, split evenly over the K charts (paper: 5,000)."""
-    dist_samples: int = 0
-    """Positives per chart and item whose Jacobian enters L_dist (0 = all, as the paper)."""
     batch_size: int = 32
     """Effective batch over all ranks (paper: 32); each of W ranks takes batch_size / W."""
     epochs: int = 150
-    lr: float = 1e-3
-    """Adam learning rate."""
-    lr_milestones: list = field(default_factory=lambda: [120, 140, 145])
+    lr_milestones: list[int] = field(default_factory=lambda: [120, 140, 145])
     """Epochs after which the lr is multiplied by ``lr_gamma`` (paper: 120, 140, 145)."""
     lr_gamma: float = 0.1
     amp: bool = True
     """Mixed precision (autocast fp16 + GradScaler) on CUDA; always off on the CPU. Steps whose
     scaled gradients are not finite are skipped; after ``amp_max_skips`` in a row it turns off."""
     amp_max_skips: int = 20
-    seed: int = 0
-    device: str = "auto"
-    """auto (CUDA when present), cpu or cuda."""
-    threads: int = 0
-    """torch CPU threads per process (0 = torch's default)."""
     checkpoint_every: int = 0
     """Also write checkpoint.pt every this many steps (0 = only at the end of each epoch)."""
     log_every: int = 10
@@ -110,28 +104,16 @@ class TrainConfig:
     """Validation items per validation (0 = the whole split)."""
     val_points: int = 5000
     """Points per shape for the validation Chamfer / F-score."""
-    tau: float = 0.5
-    eta: float = 0.4
-    c_samples: int = 20000
-    """UV samples per chart to estimate each shape's c at inference."""
-    eval_points: int = 25000
-    eval_uv_samples: int = 20000
-    grid: int = 256
 
     # -- derived ---------------------------------------------------------------------------
     def fit_config(self, latent: int | None = None) -> FitConfig:
         """The per-shape view: what ``atlas_losses``, inference and the run folder read."""
-        model = copy.deepcopy(self.model)
+        shared = {f.name: copy.deepcopy(getattr(self, f.name)) for f in fields(AtlasSettings)}
         if latent is not None:
-            model.latent = latent
-        return FitConfig(
-            preset=f"train:{self.preset}", model=model, loss=copy.deepcopy(self.loss),
-            ablation=copy.deepcopy(self.ablation), uv_samples=self.uv_samples // self.model.charts,
-            targets=self.data.target_points, dist_samples=self.dist_samples, lr=self.lr,
-            tau=self.tau, eta=self.eta, c_samples=self.c_samples, seed=self.seed, device=self.device,
-            threads=self.threads, eval_points=self.eval_points, eval_uv_samples=self.eval_uv_samples,
-            grid=self.grid,
-        )
+            shared["model"].latent = latent
+        shared["preset"] = f"train:{self.preset}"
+        return FitConfig(**shared, uv_samples=self.uv_samples // self.model.charts,
+                         targets=self.data.target_points)
 
     def validate(self) -> "TrainConfig":
         d, m = self.data, self.model
@@ -148,34 +130,23 @@ class TrainConfig:
             raise MnaError(f"data.input image needs data.layout shapenet (rendered views), got {d.layout}")
         if not d.root:
             raise MnaError("data.root is empty: set it to the dataset folder")
-        fit_config_mod.validate_model(m, charts_name="model.charts")
-        fit_config_mod.validate_loss(self.loss)
+        self.validate_atlas()
         if m.latent < 1:
             raise MnaError(f"model.latent must be at least 1 for the conditional atlas, got {m.latent}")
         if self.uv_samples < m.charts:
             raise MnaError(f"uv_samples ({self.uv_samples}) must be at least model.charts ({m.charts})")
-        for name in ("batch_size", "epochs", "log_every", "val_points", "c_samples", "eval_points",
-                     "eval_uv_samples", "amp_max_skips"):
+        for name in ("batch_size", "epochs", "log_every", "val_points", "amp_max_skips"):
             if getattr(self, name) < 1:
                 raise MnaError(f"{name} must be positive, got {getattr(self, name)}")
         for name in ("input_points", "target_points", "image_size", "views"):
             if getattr(d, name) < 1:
                 raise MnaError(f"data.{name} must be positive, got {getattr(d, name)}")
-        for name in ("checkpoint_every", "val_every", "val_shapes", "threads", "dist_samples"):
+        for name in ("checkpoint_every", "val_every", "val_shapes"):
             if getattr(self, name) < 0:
                 raise MnaError(f"{name} must be >= 0, got {getattr(self, name)}")
         if d.workers < 0 or d.mesh_cache_points < 0:
             raise MnaError("data.workers and data.mesh_cache_points must be >= 0")
-        fit_config_mod.check_float(self.lr, "lr", 0, 1e3, low_open=True)
         fit_config_mod.check_float(self.lr_gamma, "lr_gamma", 0, 1e3)
-        fit_config_mod.check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)
-        fit_config_mod.check_int(self.seed, "seed", 0, fit_config_mod.MAX_SEED)
-        if self.grid < 2:
-            raise MnaError(f"grid must be at least 2, got {self.grid}")
-        if not 0 < self.eta <= 1:
-            raise MnaError(f"eta must be in (0, 1], got {self.eta}")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise MnaError(f"device must be auto, cpu or cuda, got {self.device!r}")
         return self
 
 
@@ -207,44 +178,17 @@ def preset(name: str) -> TrainConfig:
     return PRESETS[name]()
 
 
-# list fields: (section or None, name, item type). from_dict handles scalars and dataclasses.
-_LISTS = ((None, "lr_milestones", int), ("data", "classes", str), ("encoder", "pointnet_widths", int))
-
-
 def from_dict(data: dict, base: TrainConfig | None = None) -> TrainConfig:
-    """Build a TrainConfig from a mapping, strictly. Keys left out come from ``base`` (or the
-    preset named by ``preset``, else ``paper``)."""
+    """Build a TrainConfig from a mapping, strictly (:func:`mnacore.configs.from_dict`). Keys
+    left out come from ``base`` (or the preset named by ``preset``, else ``paper``)."""
     if not isinstance(data, dict):
         raise MnaError(f"config must be a mapping, got {type(data).__name__}")
-    data = copy.deepcopy(data)
     name = data.get("preset", "paper")
     if base is None:
         if not isinstance(name, str):
             raise MnaError(f"config.preset must be str, got {name!r}")
         base = preset(name) if name in PRESETS else paper()
-    lists = {}
-    for section, key, item in _LISTS:
-        holder = data if section is None else data.get(section)
-        if isinstance(holder, dict) and key in holder:
-            value = holder.pop(key)
-            where = f"config.{key}" if section is None else f"config.{section}.{key}"
-            if isinstance(value, item) and item is str:
-                value = [v.strip() for v in value.split(",") if v.strip()]
-            if not isinstance(value, list) or not all(isinstance(v, item) and not isinstance(v, bool) for v in value):
-                raise MnaError(f"{where} must be a list of {item.__name__}, got {value!r}")
-            lists[(section, key)] = value
-    merged = _merge(fit_config_mod.to_dict(base), data)
-    for section, key, _ in _LISTS:  # keep the base's lists out of the scalar loader
-        holder = merged if section is None else merged[section]
-        if not isinstance(holder, dict):
-            raise MnaError(f"config.{section} must be a mapping, got {type(holder).__name__}")
-        holder.pop(key)
-    cfg = fit_config_mod.from_dict(merged, TrainConfig)
-    for section, key, _ in _LISTS:
-        target = cfg if section is None else getattr(cfg, section)
-        base_holder = base if section is None else getattr(base, section)
-        setattr(target, key, lists.get((section, key), list(getattr(base_holder, key))))
-    return cfg
+    return fit_config_mod.from_dict(_merge(fit_config_mod.to_dict(base), copy.deepcopy(data)), TrainConfig)
 
 
 def _merge(base: dict, override: dict) -> dict:
@@ -268,3 +212,13 @@ def to_dict(cfg: TrainConfig) -> dict:
 
 def field_names() -> list[str]:
     return [f.name for f in fields(TrainConfig)]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of `mna train`, shared with `python -m mna.train` (torchrun); here, torch-free, so
+    both entry points read one definition and neither imports the other."""
+    p.add_argument("config", metavar="CONFIG.yaml", help="training config (see docs/train.md); "
+                   "'preset: tiny' or 'preset: paper' fills the keys it leaves out")
+    p.add_argument("-o", "--out", default=None, help="training folder (default: the config's 'out')")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -3,12 +3,14 @@
 Unknown keys and wrong types raise ``MnaError`` naming the key (``config.loss.w_orient``);
 keys left out keep the dataclass's defaults. Types follow the defaults: a bool field takes
 only true/false, an int field only integers, a float field numbers (and strings such as
-``1e-3``, which YAML 1.1 reads as strings), a nested dataclass a mapping. Ranges are each
+``1e-3``, which YAML 1.1 reads as strings), a nested dataclass a mapping, a ``list[T]``
+field a list of T (a ``list[str]`` also a comma-separated string). Ranges are each
 config's own ``validate()``.
 """
 from __future__ import annotations
 
 import dataclasses
+import typing
 from dataclasses import fields
 from typing import Any
 
@@ -25,13 +27,25 @@ def from_dict(data: dict, cls: type, where: str = "config") -> Any:
         raise MnaError(f"unknown key(s) in {where}: {', '.join(unknown)}")
     kwargs = {}
     defaults = cls()
+    hints = typing.get_type_hints(cls)
     for name, value in data.items():
         default = getattr(defaults, name)
         if dataclasses.is_dataclass(default):
             kwargs[name] = from_dict(value, type(default), f"{where}.{name}")
-            continue
-        kwargs[name] = _coerce(value, default, f"{where}.{name}")
+        elif isinstance(default, list):
+            kwargs[name] = _coerce_list(value, hints[name], f"{where}.{name}")
+        else:
+            kwargs[name] = _coerce(value, default, f"{where}.{name}")
     return cls(**kwargs)
+
+
+def _coerce_list(value: Any, hint: Any, where: str) -> list:
+    (item,) = typing.get_args(hint)  # a list field must say its item type: list[int], list[str]
+    if item is str and isinstance(value, str):
+        value = [v.strip() for v in value.split(",") if v.strip()]
+    if not isinstance(value, list) or not all(isinstance(v, item) and not isinstance(v, bool) for v in value):
+        raise MnaError(f"{where} must be a list of {item.__name__}, got {value!r}")
+    return list(value)
 
 
 def _coerce(value: Any, default: Any, where: str) -> Any:

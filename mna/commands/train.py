@@ -5,6 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
+from mna import train_config
 from mnacore.errors import MnaError
 
 
@@ -13,7 +14,7 @@ def register(subparsers) -> None:
     t = subparsers.add_parser("train", help="train the conditional atlas on a dataset of shapes",
                               description="Train one network for a whole dataset (one process; for several GPUs "
                                           "or nodes run `torchrun --nproc_per_node=N -m mna.train CONFIG.yaml`).")
-    add_arguments(t)
+    train_config.add_arguments(t)
     t.set_defaults(func=run_train)
 
     r = subparsers.add_parser("reconstruct", help="feed-forward reconstruction of one shape into a run folder",
@@ -42,15 +43,6 @@ def register(subparsers) -> None:
     e.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"])
     e.add_argument("--no-progress", action="store_true")
     e.set_defaults(func=run_evaluate)
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """Arguments of `mna train`, shared with `python -m mna.train` (torchrun)."""
-    p.add_argument("config", metavar="CONFIG.yaml", help="training config (see docs/train.md); "
-                   "'preset: tiny' or 'preset: paper' fills the keys it leaves out")
-    p.add_argument("-o", "--out", default=None, help="training folder (default: the config's 'out')")
-    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run_train(args: argparse.Namespace) -> int:

@@ -378,9 +378,11 @@ def test_sigterm_saves_a_checkpoint_and_exits_143(torus_file, tmp_path):
 
 
 def test_stale_temporaries_are_cleaned_on_the_next_start(run_copy, torus_file):
-    from mnacore.atomic import atomic_path
+    from mnacore.atomic import PROCESS_START, atomic_path
 
-    old = time.time() - 60
+    # a killed earlier process left them: older than this process's start (the rule), which
+    # may be minutes ago in a long test session
+    old = PROCESS_START - 60
     stale = [run_copy / ".checkpoint.pt.mna-tmp.ab12cd_9.pt",  # this version's name
              run_copy / ".checkpoint.k2j9x0ab.pt"]  # the name before
     for p in stale:
