@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/fit_quality.py                      # 300 s per mesh, all meshes
     .venv/bin/python benchmarks/fit_quality.py --budget 60 --only bunny,eight --no-write
+    .venv/bin/python benchmarks/fit_quality.py --hard --steps 3000 --curve-every 300   # section fit_quality_hard
     python benchmarks/fit_quality.py --device cuda --budget 60      # GPU: section fit_quality_cuda
 
 For every mesh in ../shared/data/meshes: the ``fast`` preset with 3 charts (and 1 chart on
@@ -116,7 +117,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"],
                     help="fit on this device (default cpu; cuda writes the section fit_quality_cuda)")
+    ap.add_argument("--hard", action="store_true",
+                    help="hard shapes (genus 4, fine relief, thin limbs, many parts) as curves; see fit_curves.py")
+    ap.add_argument("--steps", type=int, default=3000, help="--hard: steps per fit (default: the fast preset's 3000)")
+    ap.add_argument("--curve-every", type=int, default=300, help="--hard: score every this many steps")
     args = ap.parse_args(argv)
+    if args.hard:
+        return hard_main(args)
     if not args.meshes.is_dir():
         print(f"fit_quality: mesh folder not found: {args.meshes}", file=sys.stderr)
         return 2
@@ -159,6 +166,37 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if not args.no_write:
         write_section(section, text)
+    return 0
+
+
+def hard_main(args) -> int:
+    """``--hard``: curves of F and distortion against steps on hard shapes; section fit_quality_hard."""
+    import fit_curves
+
+    only = {s for s in args.only.split(",") if s}
+    paths = [p for p in fit_curves.hard_inputs(args.work, args.meshes) if not only or p.stem in only]
+    load = os.getloadavg()[0]
+    rows = []
+    for path in paths:
+        oracle = oracle_fscore(path)
+        print(f"{path.name}: oracle F {oracle:.2f}", flush=True)
+        rows.append({**fit_curves.curve(path, args.steps, args.curve_every, device=args.device), "oracle": oracle})
+    fig = (args.work if args.no_write else ROOT / "benchmarks") / "fit_quality_hard"
+    fit_curves.curves_figure(rows, fig)
+    cfg = C.fast()
+    text = (
+        "## fit_quality_hard\n\n"
+        f"`benchmarks/fit_quality.py --hard --steps {args.steps} --curve-every {args.curve_every}`: preset `fast` "
+        f"(width {cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart), 3 charts, seed 0, {args.steps} steps "
+        f"per shape, on {args.device} ({platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}, "
+        f"{torch.get_num_threads()} threads); load average at start {load:.1f}. Scores every {args.curve_every} "
+        "steps on a copy of the model with its own c (the same metrics as a finished run); train s excludes the "
+        "scoring. Oracle F = two independent 25,000-point samples of the input surface. Curves: "
+        "`benchmarks/fit_quality_hard.png`.\n\n" + fit_curves.table(rows) + "\n"
+    )
+    print(text)
+    if not args.no_write:
+        write_section("fit_quality_hard", text)
     return 0
 
 

@@ -191,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--no-write", action="store_true", help="print the section, leave RESULTS.md alone")
     ap.add_argument("--figure", type=Path, default=ROOT / "benchmarks" / "paper_figure")
+    ap.add_argument("--report-only", action="store_true",
+                    help="run nothing: tables from the runs already finished under --work")
     args = ap.parse_args(argv)
     s = SIZES[args.size]
     from mna import family
@@ -204,10 +206,16 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     from tqdm.auto import tqdm
 
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        for row in tqdm(pool.map(run_one, jobs), total=len(jobs), desc="paper runs", dynamic_ncols=True):
-            rows.append(row)
-    wall = time.perf_counter() - t0
+    if args.report_only:
+        done = [work / "rows" / f"{key(spec)}.json" for spec in specs]
+        rows = [json.loads(p.read_text()) for p in done if p.is_file()]
+        print(f"{len(rows)} of {len(specs)} runs finished", file=sys.stderr)
+    else:
+        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            for row in tqdm(pool.map(run_one, jobs), total=len(jobs), desc="paper runs", dynamic_ncols=True):
+                rows.append(row)
+    wall = sum(r.get("seconds", 0.0) for r in rows) / max(1, args.jobs) if args.report_only else \
+        time.perf_counter() - t0
     text = section(rows, s, args, load, wall)
     print(text)
     write_figure(rows, args.figure, s)

@@ -22,8 +22,6 @@ def torus(major: float = 1.0, minor: float = 0.4, sections: int = 96, ring: int 
 
 def genus2(resolution: int = 72) -> trimesh.Trimesh:
     """A genus-2 surface (two fused tori) from marching cubes on an implicit function."""
-    from skimage.measure import marching_cubes
-
     n = resolution
     lin = np.linspace(-1.6, 1.6, n)
     x, y, z = np.meshgrid(lin, lin, lin, indexing="ij")
@@ -37,11 +35,7 @@ def genus2(resolution: int = 72) -> trimesh.Trimesh:
     k = 0.15  # smooth-min radius: fuses the two tori into one genus-2 surface
     h = np.clip(0.5 + 0.5 * (d2 - d1) / k, 0.0, 1.0)
     field = d2 * (1 - h) + d1 * h - k * h * (1 - h)
-    verts, faces, _, _ = marching_cubes(field, level=0.0, spacing=(lin[1] - lin[0],) * 3)
-    verts = verts + lin[0]
-    mesh = trimesh.Trimesh(verts, faces[:, ::-1], process=True)
-    mesh.fix_normals()
-    return mesh
+    return _implicit(field, lin)
 
 
 def two_spheres(radius: float = 0.5, gap: float = 0.4, subdivisions: int = 3) -> trimesh.Trimesh:
@@ -66,11 +60,78 @@ def sheet(size: float = 2.0, resolution: int = 48, amplitude: float = 0.0) -> tr
     return trimesh.Trimesh(verts, faces, process=False)
 
 
+def _implicit(field, lin: np.ndarray) -> trimesh.Trimesh:
+    """The zero level set of ``field`` sampled on ``lin``^3 (marching cubes), outward normals."""
+    from skimage.measure import marching_cubes
+
+    verts, faces, _, _ = marching_cubes(field, level=0.0, spacing=(lin[1] - lin[0],) * 3)
+    mesh = trimesh.Trimesh(verts + lin[0], faces[:, ::-1], process=True)
+    mesh.fix_normals()
+    return mesh
+
+
+def genus4(resolution: int = 96) -> trimesh.Trimesh:
+    """A rounded plate with four round holes: genus 4 (Euler number -6)."""
+    lin = np.linspace(-1.3, 1.3, resolution)
+    x, y, z = np.meshgrid(lin, lin, lin, indexing="ij")
+    q = np.stack([np.abs(x) - 0.95, np.abs(y) - 0.95, np.abs(z) - 0.12])
+    slab = np.linalg.norm(np.maximum(q, 0), axis=0) + np.minimum(q.max(0), 0) - 0.08
+    holes = np.min([np.hypot(x - cx, y - cy) - 0.28 for cx in (-0.5, 0.5) for cy in (-0.5, 0.5)], axis=0)
+    return _implicit(np.maximum(slab, -holes), lin)
+
+
+def bumpy(subdivisions: int = 6, amplitude: float = 0.04, frequency: float = 14.0) -> trimesh.Trimesh:
+    """A sphere with fine relief: radius 1 + a sin(f x) sin(f y) sin(f z). The bumps are about
+    1/f wide: fine detail at the scale of the F-score's 0.02 tolerance. Genus 0."""
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    v = mesh.vertices
+    r = 1 + amplitude * np.sin(frequency * v[:, 0]) * np.sin(frequency * v[:, 1]) * np.sin(frequency * v[:, 2])
+    return trimesh.Trimesh(v * r[:, None], mesh.faces, process=False)
+
+
+def limbs(resolution: int = 112) -> trimesh.Trimesh:
+    """A body with six thin limbs (capsules of radius 0.07, about 7 % of the body's size),
+    smoothly joined: thin features a chart must stretch into. Genus 0."""
+    lin = np.linspace(-1.5, 1.5, resolution)
+    p = np.stack(np.meshgrid(lin, lin, lin, indexing="ij"), -1)
+    field = np.linalg.norm(p / [0.6, 0.45, 0.4], axis=-1) * 0.45 - 0.45  # the body, roughly an ellipsoid
+    tips = np.array([[1.3, 0.4, 0.2], [-1.3, 0.3, -0.2], [0.3, 1.3, 0.1], [-0.2, -1.3, 0.3], [0.2, 0.2, 1.3],
+                     [0.4, -0.9, -1.0]])
+    for tip in tips:
+        t = np.clip((p @ tip) / (tip @ tip), 0, 1)[..., None]
+        capsule = np.linalg.norm(p - t * tip, axis=-1) - 0.07
+        k = 0.08  # smooth-min radius: a fillet where a limb meets the body
+        h = np.clip(0.5 + 0.5 * (capsule - field) / k, 0, 1)
+        field = capsule * (1 - h) + field * h - k * h * (1 - h)
+    return _implicit(field, lin)
+
+
+def assembly(parts: int = 12, seed: int = 0) -> trimesh.Trimesh:
+    """``parts`` disjoint solids (boxes, cylinders, spheres, capsules) of varied size on a
+    jittered grid: many parts for few charts."""
+    rng = np.random.default_rng(seed)
+    makers = (lambda s: trimesh.creation.box(extents=s * rng.uniform(0.5, 1.0, 3)),
+              lambda s: trimesh.creation.cylinder(radius=0.3 * s, height=s, sections=32),
+              lambda s: trimesh.creation.icosphere(subdivisions=3, radius=0.45 * s),
+              lambda s: trimesh.creation.capsule(height=0.6 * s, radius=0.2 * s, count=[16, 16]))
+    side = int(np.ceil(np.sqrt(parts)))
+    meshes = []
+    for i in range(parts):
+        m = makers[i % len(makers)](rng.uniform(0.5, 0.8))
+        m.apply_transform(trimesh.transformations.random_rotation_matrix(rng.random(3)))
+        m.apply_translation([i % side, i // side, rng.uniform(-0.3, 0.3)])
+        meshes.append(m)
+    return trimesh.util.concatenate(meshes)
+
+
 SHAPES = {"sphere": sphere, "torus": torus, "genus2": genus2, "two_spheres": two_spheres, "sheet": sheet}
+#: shapes that are hard for a 3-chart fit (issue 18): handles, fine relief, thin limbs, many parts
+HARD_SHAPES = {"genus4": genus4, "bumpy": bumpy, "limbs": limbs, "assembly": assembly}
 
 
 def make(name: str) -> trimesh.Trimesh:
-    """Build a shape by name (one of ``SHAPES``)."""
-    if name not in SHAPES:
-        raise ValueError(f"unknown built-in shape {name!r}; choose from {', '.join(SHAPES)}")
-    return SHAPES[name]()
+    """Build a shape by name (one of ``SHAPES`` or ``HARD_SHAPES``)."""
+    makers = {**SHAPES, **HARD_SHAPES}
+    if name not in makers:
+        raise ValueError(f"unknown built-in shape {name!r}; choose from {', '.join(makers)}")
+    return makers[name]()

@@ -1,0 +1,114 @@
+"""Fit fidelity on hard shapes, as curves of quality against steps and time (issue 18).
+
+    .venv/bin/python benchmarks/fit_quality.py --hard [--steps 3000] [--curve-every 300]
+
+Shapes a 3-chart fit finds hard, made procedurally (:data:`mna.shapes.HARD_SHAPES`: a genus-4
+plate, a sphere with fine relief, a body with thin limbs, a 12-part assembly), plus the
+shared 13-part truck when present. Each is fitted with the ``fast`` preset for a step budget;
+every ``curve_every`` steps a copy of the model gets its own c and is scored by the same
+metrics as a finished run (:func:`mna.reconstruct.shape_metrics`: F-score of the chart mesh
+and of the point sample, distortions, occupancy), so the last point of a curve is the
+fit's result. Training time excludes the scoring.
+"""
+from __future__ import annotations
+
+import copy
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mna import config as C
+from mna import shapes
+from mna.data import load_surface
+from mna.fit import Fitter
+from mna.inference import estimate_c
+from mna.model import flush_denormals
+from mna.reconstruct import shape_metrics
+
+SHARED_HARD = ("cesium_milk_truck.obj",)
+
+
+def hard_inputs(work: Path, meshes: Path) -> list[Path]:
+    """The procedural hard shapes (written once under ``work``) and the shared ones present."""
+    paths = []
+    for name in shapes.HARD_SHAPES:
+        path = work / "shapes" / f"{name}.ply"
+        if not path.is_file():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            shapes.make(name).export(path)
+        paths.append(path)
+    return paths + [meshes / n for n in SHARED_HARD if (meshes / n).is_file()]
+
+
+def score(fitter: Fitter, reference: np.ndarray) -> dict:
+    """Metrics of the model as it stands, on a copy that gets its own c (as a finished fit)."""
+    cfg = fitter.cfg
+    model = copy.deepcopy(fitter.model).eval()
+    gen = torch.Generator().manual_seed(cfg.seed + 1)
+    model.c.fill_(float(estimate_c(model, gen, cfg.c_samples, cfg.eta, naive=cfg.ablation.naive_classifier)[0]))
+    m = shape_metrics(model, reference, cfg, cfg.eval_points, full=True)
+    return {k: m[k] for k in ("fscore_mesh", "fscore_pcl", "chamfer_mesh", "distortion_metric", "occupancy_mean")}
+
+
+def curve(path: Path, steps: int, every: int, charts: int = 3, seed: int = 0, device: str = "cpu") -> dict:
+    """Fit ``path`` for ``steps`` steps, scoring every ``every``; the curve and the last score."""
+    cfg = C.fast()
+    cfg.steps, cfg.seed, cfg.device = steps, seed, device
+    cfg.model.charts = charts
+    surface = load_surface(path)
+    reference = surface.sample(cfg.eval_points, np.random.default_rng(cfg.seed + 3))
+    fitter = Fitter(cfg, surface, torch.device(device))
+    points = []
+    with flush_denormals():
+        while not fitter.done():
+            t0 = time.perf_counter()
+            fitter.train_step()
+            fitter.elapsed += time.perf_counter() - t0
+            if fitter.step % every == 0 or fitter.done():
+                points.append({"step": fitter.step, "seconds": fitter.elapsed, **score(fitter, reference)})
+                print(f"  {path.stem} step {fitter.step}: F_mesh {points[-1]['fscore_mesh']:.2f}, "
+                      f"d_metric {points[-1]['distortion_metric']:.3f}, {fitter.elapsed:.0f} s", flush=True)
+    faces = len(surface.mesh.faces) if surface.is_mesh else 0
+    return {"mesh": path.name, "faces": faces, "charts": charts, "steps": steps,
+            "sps": steps / max(fitter.elapsed, 1e-9), "wall": fitter.elapsed, "curve": points, **points[-1]}
+
+
+def curves_figure(rows: list[dict], stem: Path) -> None:
+    """F-score (mesh) and metric distortion against steps, one line per shape (PNG + PDF)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    for r in rows:
+        s = [p["step"] for p in r["curve"]]
+        ax[0].plot(s, [p["fscore_mesh"] for p in r["curve"]], marker="o", label=r["mesh"])
+        ax[1].plot(s, [p["distortion_metric"] for p in r["curve"]], marker="o", label=r["mesh"])
+        if r.get("oracle") is not None:
+            ax[0].axhline(r["oracle"], color=ax[0].lines[-1].get_color(), ls=":", lw=0.8)
+    ax[0].set(xlabel="steps", ylabel="F@1% (chart mesh)", title="Fidelity (dotted: oracle)")
+    ax[1].set(xlabel="steps", ylabel="metric distortion", title="Distortion", yscale="log")
+    ax[0].legend(fontsize=7)
+    fig.tight_layout()
+    for ext in ("png", "pdf"):
+        tmp = stem.with_name(f".{stem.name}.tmp.{ext}")
+        fig.savefig(tmp, dpi=110)
+        tmp.replace(stem.with_suffix(f".{ext}"))
+    plt.close(fig)
+
+
+def table(rows: list[dict]) -> str:
+    head = ("| shape | faces | K | F_mesh | oracle F | gap | F_pcl | d_metric | occupancy % | steps | steps/s | "
+            "train s | F_mesh at 25 / 50 / 75 % of the steps |\n|" + "---|" * 13)
+    lines = [head]
+    for r in rows:
+        c = r["curve"]
+        marks = [min(c, key=lambda p, q=q: abs(p["step"] - q * r["steps"]))["fscore_mesh"] for q in (0.25, 0.5, 0.75)]
+        lines.append(f"| {r['mesh']} | {r['faces']} | {r['charts']} | {r['fscore_mesh']:.2f} | {r['oracle']:.2f} | "
+                     f"{r['oracle'] - r['fscore_mesh']:.2f} | {r['fscore_pcl']:.2f} | {r['distortion_metric']:.3f} | "
+                     f"{r['occupancy_mean']:.1f} | {r['steps']} | {r['sps']:.2f} | {r['wall']:.0f} | "
+                     f"{' / '.join(f'{m:.1f}' for m in marks)} |")
+    return "\n".join(lines)
