@@ -99,10 +99,6 @@ def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, pa
     run = Path(run)
     if not run.is_dir():
         raise InputError(f"run folder not found: {run}")
-    if (run / "unwrap.json").is_file():  # an `mna unwrap` folder: ours vs xatlas on the input mesh
-        from .unwrap_compare import compare_unwrap
-
-        return compare_unwrap(run, sweep=sweep, size=size, padding=padding)
     charts = load_charts(run / "charts.npz")
     norm = charts.normalization
     if not _fresh_export(run):

@@ -124,12 +124,15 @@ def run_uv(args: argparse.Namespace) -> int:
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    from texture.compare import compare_run
     from texture.textures import check_size
 
     size = check_size(args.size)
     padding = _int_arg(args.padding, "--padding", 0)
-    r = compare_run(args.run, sweep=not args.no_sweep, size=size, padding=padding)
+    if (Path(args.run) / "unwrap.json").is_file():  # an `mna unwrap` folder: ours vs xatlas on the input mesh
+        from texture.unwrap_compare import compare_unwrap as compare
+    else:  # a fit's folder: our atlas of the reconstruction vs xatlas
+        from texture.compare import compare_run as compare
+    r = compare(args.run, sweep=not args.no_sweep, size=size, padding=padding)
     print(f"compared {len(r['methods'])} methods -> {Path(args.run) / 'compare.md'}")
     return 0
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mna import family, paper
 from mna import config as C
+from mna import family, paper
 
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
 
