@@ -96,6 +96,49 @@ def _heat_range(run_dir: Path, kind: str):
     return json.loads(rec.read_text()).get("heat_ranges", {}).get(kind)
 
 
+def _layout(runs: list[Path], rows: list[str], prefix: str, image: str, view: str | None):
+    """The grid: ``cells[i][j] = (run, method, view)`` and the column titles. One run: a
+    column per view; several runs: a column per run at one view."""
+    if len(runs) == 1:
+        views = _views(runs[0], rows[0], prefix)
+        if not views:
+            raise ValueError(f"{runs[0]}/renders/{rows[0]} has no {image} renders")
+        cols = [view] if view else views
+        return [[(runs[0], m, v) for v in cols] for m in rows], [v.replace("_", " ") for v in cols]
+    cells = [[(r, m, view or _pick_view(_views(r, m, prefix) or ["front"])) for r in runs] for m in rows]
+    return cells, [r.name for r in runs]
+
+
+def _draw_cell(ax, png: Path, cap: str | None, title: str | None, ylabel: str | None, several_runs: bool) -> None:
+    ax.set_xticks([]), ax.set_yticks([])
+    for s in ax.spines.values():
+        s.set_visible(False)
+    if png.is_file():
+        ax.imshow(np.clip(read_image(png)[..., :3], 0, 1), interpolation="lanczos")
+    else:
+        ax.text(0.5, 0.5, "missing", ha="center", va="center", transform=ax.transAxes, color="0.5")
+    if cap and several_runs:
+        ax.set_xlabel(cap, fontsize=7)
+    if title is not None:
+        ax.set_title(title, fontsize=9)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel, fontsize=9)
+
+
+def _check_request(runs: list[Path], out: Path, rows, prefix: str) -> list[str]:
+    if not runs:
+        raise ValueError("figure: give at least one run folder")
+    for r in runs:
+        if not (r / "renders").is_dir():
+            raise ValueError(f"{r} has no renders/; run `mna render {r}` first")
+    if out.suffix.lower() != ".png":
+        raise ValueError(f"-o: the figure is written as PNG; give a .png path, got {out.name!r}")
+    rows = [m for m in rows if any((r / "renders" / m).is_dir() for r in runs)]
+    if not rows:
+        raise ValueError(f"figure: none of the rows' methods have renders in {', '.join(map(str, runs))}")
+    return rows
+
+
 def make_figure(run_dirs: list[str | Path], out: str | Path, rows: tuple[str, ...] = ("mna", "xatlas"),
                 image: str = "texture", view: str | None = None, pdf: bool = False,
                 cell_inches: float = 2.4, dpi: int = 200) -> FigureResult:
@@ -111,31 +154,10 @@ def make_figure(run_dirs: list[str | Path], out: str | Path, rows: tuple[str, ..
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    runs = [Path(r) for r in run_dirs]
-    if not runs:
-        raise ValueError("figure: give at least one run folder")
-    for r in runs:
-        if not (r / "renders").is_dir():
-            raise ValueError(f"{r} has no renders/; run `mna render {r}` first")
-    out = Path(out)
-    if out.suffix.lower() != ".png":
-        raise ValueError(f"-o: the figure is written as PNG; give a .png path, got {out.name!r}")
+    runs, out = [Path(r) for r in run_dirs], Path(out)
     prefix = "" if image == "texture" else f"{image}_"
-    rows = [m for m in rows if any((r / "renders" / m).is_dir() for r in runs)]
-    if not rows:
-        raise ValueError(f"figure: none of the rows' methods have renders in {', '.join(map(str, runs))}")
-    if len(runs) == 1:
-        views = _views(runs[0], rows[0], prefix)
-        if not views:
-            raise ValueError(f"{runs[0]}/renders/{rows[0]} has no {image} renders")
-        cols = [view] if view else views
-        cells = [[(runs[0], m, v) for v in cols] for m in rows]
-        col_titles = [v.replace("_", " ") for v in cols]
-    else:
-        cols = [r.name for r in runs]
-        cells = [[(r, m, view or _pick_view(_views(r, m, prefix) or ["front"])) for r in runs] for m in rows]
-        col_titles = cols
-
+    rows = _check_request(runs, out, rows, prefix)
+    cells, col_titles = _layout(runs, rows, prefix, image, view)
     heat = _heat_range(runs[0], image[5:]) if image.startswith("heat_") and image != "heat_charts" else None
     n_r, n_c = len(rows), len(col_titles)
     fig, axes = plt.subplots(n_r, n_c, figsize=(cell_inches * n_c, cell_inches * n_r + (0.6 if heat else 0.3)),
@@ -143,24 +165,12 @@ def make_figure(run_dirs: list[str | Path], out: str | Path, rows: tuple[str, ..
     fig.get_layout_engine().set(w_pad=0.02, h_pad=0.02, wspace=0.01, hspace=0.01)
     for i, method in enumerate(rows):
         for j, (run, m, v) in enumerate(cells[i]):
-            ax = axes[i][j]
-            ax.set_xticks([]), ax.set_yticks([])
-            for s in ax.spines.values():
-                s.set_visible(False)
-            png = run / "renders" / m / f"{prefix}{v}.png"
-            if png.is_file():
-                ax.imshow(np.clip(read_image(png)[..., :3], 0, 1), interpolation="lanczos")
-            else:
-                ax.text(0.5, 0.5, "missing", ha="center", va="center", transform=ax.transAxes, color="0.5")
             cap = caption(run, m)
-            if cap and len(runs) > 1:
-                ax.set_xlabel(cap, fontsize=7)
-            if i == 0:
-                ax.set_title(col_titles[j], fontsize=9)
-            if j == 0:
-                # one line per number: a single rotated line overflows a row's height
-                one_run_cap = "\n" + cap.replace(" · ", "\n") if cap and len(runs) == 1 else ""
-                ax.set_ylabel(f"{method}{one_run_cap}", fontsize=9)
+            # one line per number: a single rotated line overflows a row's height
+            one_run_cap = "\n" + cap.replace(" · ", "\n") if cap and len(runs) == 1 else ""
+            _draw_cell(axes[i][j], run / "renders" / m / f"{prefix}{v}.png", cap,
+                       col_titles[j] if i == 0 else None, f"{method}{one_run_cap}" if j == 0 else None,
+                       len(runs) > 1)
     if heat:
         bar = fig.colorbar(ScalarMappable(Normalize(heat["vmin"], heat["vmax"]), heat["cmap"]), ax=axes,
                            location="bottom", shrink=0.5, aspect=40, extend="max")
