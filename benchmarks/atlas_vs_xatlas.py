@@ -55,7 +55,7 @@ def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size:
                      "--time-budget", str(budget), "--no-progress")
         t_extract = _mna("extract", str(run), "--grid", str(grid))
         timing_file.write_text(json.dumps([t_fit, t_extract]))
-    export = export_run(run, size=size, padding=8)
+    export = export_run(run, size=size, padding=8).to_json()
     cmp = compare_run(run, sweep=sweep, size=size, padding=8)
     fit_metrics = json.loads((run / "metrics.json").read_text())
     ft = fit_metrics.get("timings", {})

@@ -194,8 +194,8 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
 
     First free SLIM (``texture.relax.relax_island`` without the border-crossing guard): its
     iterations may cross the border on the way and still end injective, and the guard's
-    pinning can stall far from the optimum (a 683-face bunny region: excess 4.17 guarded,
-    0.02 free). If the free result flips a face or crosses its border, the guarded run
+    pinning can stall far from the optimum on a region whose free optimum needs its border
+    vertices to move far (one such 683-face region: excess 4.17 guarded, 0.02 free). If the free result flips a face or crosses its border, the guarded run
     (crossing-free after every iteration) is used instead; if that fails too, the start.
     """
     from .relax import crossing_edges, energy_excess, relax_island

@@ -5,7 +5,7 @@
 centre, max radius 1) and UVs rescaled globally so total UV area = total 3D area
 (see ``distortion_faces.equal_area_uv_scale``); every number is then scale-free.
 
-Summary keys (example values for xatlas on the bunny in docs/texture.md):
+Summary keys (example values in docs/texture.md):
 
 ``charts``             connected UV islands (edge-connected in UV).
 ``seam_length``        3D length of cut edges / sqrt(surface area). A cut edge is a UV

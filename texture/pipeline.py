@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from mnacore.frame import Normalization, unit_ball_normalization
 from mnacore.uvmesh import UVMesh, load_uv_mesh
 
 from .atlas import AtlasConfig, build_atlas
+from .atlas_stats import AtlasStats
 from .export import export_textured
 from .harness import measure
 from .orient import Reference
@@ -138,16 +140,40 @@ def make_texture(kind: str, mesh_unit: UVMesh, size: int, padding: int, source=N
     return bake(mesh_unit, source, size, padding)
 
 
-def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str = 2048, padding: int = 8,
-               square_size: float | None = None, max_islands: int = AtlasConfig.max_islands,
-               relax: int = RelaxConfig.iterations) -> dict:
-    """Charts of ``RUN/charts.npz`` -> ``RUN/mesh.obj``, ``mesh.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``atlas.json``.
+@dataclass
+class ExportReport:
+    """What :func:`export_run` did: ``atlas.json``'s content, typed.
 
-    Returns the ``atlas.json`` content: atlas stats (trim, coverage, packing), harness
-    summary, timings (seconds), written paths.
+    Attributes:
+        config: the resolved export configuration (every option of the atlas stages), so the
+            export can be reproduced from ``atlas.json`` alone (with the run's charts.npz).
+        checker_square_size: the checker square drawn (unit-ball frame).
+        atlas: the atlas stages' measurements.
+        uv_metrics: the harness summary of the exported mesh.
+        timings: seconds per step (``atlas_*`` per atlas stage, ``export_total``).
+        files: written paths.
     """
-    run = Path(run)
-    size = check_size(size)
+
+    texture: str
+    size: int
+    padding: int
+    relax: int
+    config: dict
+    checker_square_size: float
+    atlas: AtlasStats
+    uv_metrics: dict
+    timings: dict
+    files: dict
+
+    def to_json(self) -> dict:
+        """The ``atlas.json`` content."""
+        return {"texture": self.texture, "size": self.size, "padding": self.padding, "relax": self.relax,
+                "config": self.config, "checker_square_size": self.checker_square_size,
+                "atlas": self.atlas.to_json(timings=False), "uv_metrics": self.uv_metrics,
+                "timings": self.timings, "files": self.files}
+
+
+def _check_export_args(run: Path, texture: str, padding, relax) -> None:
     if isinstance(padding, bool) or int(padding) != padding or padding < 0:
         raise InputError(f"--padding must be a non-negative integer, got {padding!r}")
     if isinstance(relax, bool) or not isinstance(relax, (int, np.integer)) or relax < 0:
@@ -156,6 +182,19 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
         raise InputError(f"unknown texture {texture!r}; choose from {', '.join(TEXTURES)}")
     if not run.is_dir():
         raise InputError(f"run folder not found: {run}")
+
+
+def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str = 2048, padding: int = 8,
+               square_size: float | None = None, max_islands: int = AtlasConfig.max_islands,
+               relax: int = RelaxConfig.iterations) -> ExportReport:
+    """Charts of ``RUN/charts.npz`` -> ``RUN/mesh.obj``, ``mesh.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``atlas.json``.
+
+    Returns what ``atlas.json`` holds (:class:`ExportReport`): atlas stats (trim, coverage,
+    packing), harness summary, timings (seconds), written paths.
+    """
+    run = Path(run)
+    size = check_size(size)
+    _check_export_args(run, texture, padding, relax)
     charts = load_charts(run / "charts.npz")
     t0 = time.perf_counter()
     mesh_in, points_in = load_input(run)
@@ -184,18 +223,15 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     t3 = time.perf_counter()
     metrics = measure(atlas.mesh, reference=mesh_in, normalization=norm,
                       reference_is_closed=mesh_in is None)
-    timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.stats.pop("timings").items()},
+    timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.report.timings.items()},
                "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
     timings["export_total"] = t3 - t0
-    # the resolved export configuration: every option of the atlas stages, so the export can
-    # be reproduced from atlas.json alone (with the run's charts.npz)
     config = {"texture": texture, "size": size, "padding": int(padding), "square_size": square_size,
               "atlas": dataclasses.asdict(cfg)}
-    result = {"texture": texture, "size": size, "padding": int(padding), "relax": int(relax), "config": config,
-              "checker_square_size": square, "atlas": atlas.stats,
-              "uv_metrics": metrics.summary, "timings": timings, "files": paths}
-    write_json(run / "atlas.json", result)
-    return result
+    report = ExportReport(texture, size, int(padding), int(relax), config, square, atlas.report,
+                          metrics.summary, timings, paths)
+    write_json(run / "atlas.json", report.to_json())
+    return report
 
 
 def uv_mesh_file(mesh_path: str | os.PathLike, out: str | os.PathLike, options: XatlasOptions | None = None,

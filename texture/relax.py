@@ -1,8 +1,8 @@
 """Relax each island's UVs toward an isometry with SLIM (libigl), keeping every island injective.
 
-The neural charts are fitted with a distortion loss, but a 3-chart fit of a many-part
-shape (the 13-part milk truck) still leaves charts stretched where one chart has to reach
-several parts. Once the charts are cut into islands, each island can be re-flattened on
+The neural charts are fitted with a distortion loss, but when a shape has more
+disconnected parts than there are charts, a chart has to reach several parts and is
+left stretched where it does. Once the charts are cut into islands, each island can be re-flattened on
 its own: SLIM (Rabinovich et al., "Scalable Locally Injective Mappings", 2017; libigl's
 ``slim_precompute`` / ``slim_solve``) minimises the symmetric Dirichlet energy
 

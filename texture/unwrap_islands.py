@@ -252,8 +252,9 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
     and slit the halves; at most ``cfg.max_split_rounds`` rounds. One island at a time keeps
     the count low where a single island carries the distortion; a halving whose halves
     contribute no less (3D area times excess) is rejected and that island left alone. (Rejecting
-    by the atlas's distortion instead got stuck: on a bob fit the first halving of the worst
-    island raised it, 1.94 -> 3.87, and later halvings then brought it to 0.03.)"""
+    by the atlas's distortion instead gets stuck: where the worst island is a long, curved
+    region, its first halving can raise the atlas's distortion (1.94 -> 3.87 once) before
+    later halvings bring it down (to 0.03).)"""
     st = {"islands_split": 0, "region_splits": 0, "cut_edges": 0}
     area = [float(triangle_areas(isl.xyz, isl.faces).sum()) for isl in islands]
     excess = [energy_excess(isl.xyz, isl.uv, isl.faces) for isl in islands]
@@ -278,7 +279,7 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
             new_excess = [energy_excess(n.xyz, n.uv, n.faces) for n in new]
             candidate = atlas_distortion(islands[:i] + islands[i + 1:] + new)
             # the halves must contribute less, and not blow the atlas up on the way (a half whose
-            # SLIM stalled: on the truck one spectral half reached metric 16)
+            # SLIM stalls, e.g. a spectral half spanning two thin parts, can reach metric 16)
             if (np.isfinite(new_excess).all() and np.dot(new_area, new_excess) < a[i] * e[i]
                     and candidate <= BLOWUP * current):
                 break

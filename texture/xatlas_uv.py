@@ -106,6 +106,25 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> N
         raise InputError(f"{name} is non-manifold: {int((counts > 2).sum())} edge(s) shared by more than two faces")
 
 
+#: XatlasOptions field -> (xatlas ChartOptions / PackOptions attribute, type)
+CHART_OPTIONS = {"max_cost": ("max_cost", float), "max_iterations": ("max_iterations", int),
+                 "max_chart_area": ("max_chart_area", float), "max_boundary_length": ("max_boundary_length", float),
+                 "normal_deviation_weight": ("normal_deviation_weight", float),
+                 "roundness_weight": ("roundness_weight", float), "straightness_weight": ("straightness_weight", float),
+                 "normal_seam_weight": ("normal_seam_weight", float),
+                 "texture_seam_weight": ("texture_seam_weight", float)}
+PACK_OPTIONS = {"resolution": ("resolution", int), "padding": ("padding", int),
+                "texels_per_unit": ("texels_per_unit", float), "bilinear": ("bilinear", bool),
+                "brute_force": ("bruteForce", bool), "rotate_charts": ("rotate_charts", bool)}
+
+
+def _set_options(target, opts: XatlasOptions, spec: dict):
+    """``target`` (an xatlas options object) with every field of ``spec`` copied from ``opts``."""
+    for name, (attr, kind) in spec.items():
+        setattr(target, attr, kind(getattr(opts, name)))
+    return target
+
+
 def unwrap(vertices: np.ndarray, faces: np.ndarray, options: XatlasOptions | None = None,
            check: bool = True) -> XatlasResult:
     """UV-map ``(vertices (V,3), faces (F,3))`` with xatlas; see the module docstring."""
@@ -118,23 +137,8 @@ def unwrap(vertices: np.ndarray, faces: np.ndarray, options: XatlasOptions | Non
         check_mesh(vertices, faces)
     norm = unit_ball_normalization(vertices[np.unique(faces)])
     positions = norm.apply(vertices) if opts.normalize else vertices
-    co = xatlas.ChartOptions()
-    co.max_cost = float(opts.max_cost)
-    co.max_iterations = int(opts.max_iterations)
-    co.max_chart_area = float(opts.max_chart_area)
-    co.max_boundary_length = float(opts.max_boundary_length)
-    co.normal_deviation_weight = float(opts.normal_deviation_weight)
-    co.roundness_weight = float(opts.roundness_weight)
-    co.straightness_weight = float(opts.straightness_weight)
-    co.normal_seam_weight = float(opts.normal_seam_weight)
-    co.texture_seam_weight = float(opts.texture_seam_weight)
-    po = xatlas.PackOptions()
-    po.resolution = int(opts.resolution)
-    po.padding = int(opts.padding)
-    po.texels_per_unit = float(opts.texels_per_unit)
-    po.bilinear = bool(opts.bilinear)
-    po.bruteForce = bool(opts.brute_force)
-    po.rotate_charts = bool(opts.rotate_charts)
+    co = _set_options(xatlas.ChartOptions(), opts, CHART_OPTIONS)
+    po = _set_options(xatlas.PackOptions(), opts, PACK_OPTIONS)
     atlas = xatlas.Atlas()
     atlas.add_mesh(positions.astype(np.float32), faces.astype(np.uint32))
     t0 = time.perf_counter()

@@ -99,10 +99,10 @@ def run_export(args: argparse.Namespace) -> int:
     relax = _int_arg(args.relax, "--relax", 0)
     r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=square_size,
                    max_islands=args.max_islands, relax=relax)
-    a, m = r["atlas"], r["uv_metrics"]
-    print(f"atlas: {a['islands']} islands from {a['charts_used']} charts, seam length {m['seam_length']:.2f}, "
-          f"distortion_metric {m['distortion_metric']:.3f}, utilization {a['utilization']:.2f}, "
-          f"doubly covered {a['doubly_covered_percent']:.2f} %, fscore drop {a.get('fscore_drop', float('nan')):.2f}"
+    a, m = r.atlas, r.uv_metrics
+    print(f"atlas: {a.islands} islands from {a.charts_used} charts, seam length {m['seam_length']:.2f}, "
+          f"distortion_metric {m['distortion_metric']:.3f}, utilization {a.utilization:.2f}, "
+          f"doubly covered {a.doubly_covered_percent:.2f} %, fscore drop {a.fscore_drop:.2f}"
           f" -> {Path(args.run) / 'mesh.obj'}, mesh.glb")
     return 0
 

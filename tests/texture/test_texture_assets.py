@@ -9,10 +9,10 @@ from texture_helpers import glb_attribute, glb_json
 from mnacore.grid import grid_faces
 from mnacore.uvmesh import make_uv_mesh, weld_ids
 from texture import gltf_validator
-from texture.atlas import _unmirrored
 from texture.clip import SNAP_FRACTION, clip_mesh
 from texture.export import ROUGHNESS, export_textured, read_back
 from texture.harness import measure
+from texture.layouts import prepare, unmirrored
 from texture.normals import shading_normals
 from texture.textures import checker_image
 from texture.trim import Piece
@@ -137,7 +137,7 @@ def test_harness_reports_mirrored_area():
 
 def test_atlas_reflects_mirrored_islands():
     V, F, uv = _two_islands(mirror_second=True)
-    out = _unmirrored(Piece(0, V.astype(float), uv, F))
+    out = unmirrored(prepare(Piece(0, V.astype(float), uv, F)))
     t = out.uv[out.faces]
     signed = (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
     assert (signed > 0).all()

@@ -9,14 +9,16 @@ from mnacore.charts import ChartGrids, load_charts
 from mnacore.frame import Normalization
 from mnacore.grid import grid_faces
 from mnacore.triangles import triangle_areas
-from texture.atlas import AtlasConfig, _merge, build_atlas
+from texture.atlas import AtlasConfig, build_atlas
 from texture.clip import clip_mesh
 from texture.harness import measure
 from texture.islands import uv_islands
-from texture.pack import pack_islands, verify_packing
+from texture.layouts import merge_pieces
+from texture.pack import pack_islands
 from texture.raster import coverage_count
 from texture.relax import RelaxConfig
 from texture.trim import border_points, domain_pieces, trim_charts
+from texture.verify import verify_packing
 
 
 def _uv_area(uv, faces):
@@ -181,7 +183,7 @@ def test_build_atlas_is_deterministic(sphere_run):
 
 def test_islands_touching_at_a_vertex_get_their_own_copy():
     """Two squares of one chart meeting at a single corner are two islands (no shared edge); packing
-    one must not drag the other's corner along, so _merge gives each its own vertex there."""
+    one must not drag the other's corner along, so merging gives each its own vertex there."""
     from texture.trim import Piece
 
     t = np.linspace(0.0, 1.0, 9)
@@ -193,7 +195,7 @@ def test_islands_touching_at_a_vertex_get_their_own_copy():
     shared = np.flatnonzero(np.all(uv == 0.0, axis=1))
     faces[faces == shared[1]] = shared[0]  # one vertex index for the common corner
     piece = Piece(0, np.column_stack([uv, np.zeros(len(uv))]), uv, faces)
-    xyz, uv_local, faces_m, chart, island = _merge([piece])
+    uv_local, faces_m, island = merge_pieces([piece]).islands
     assert island.max() == 1
     for i in range(2):  # no vertex is used by both islands
         assert not np.isin(faces_m[island == i], faces_m[island != i]).any()
@@ -217,7 +219,7 @@ def _rectangle_island(G=41):
 
 @pytest.mark.parametrize("fraction", [None, 0.25, 0.75])
 def test_cut_island_leaves_the_asked_area_fraction(fraction):
-    from texture.atlas import cut_island
+    from texture.layouts import cut_island
 
     p = _rectangle_island()
     area = p.uv_area().sum()
@@ -236,14 +238,16 @@ def test_cut_island_leaves_the_asked_area_fraction(fraction):
 
 
 def test_search_gives_up_below_min_estimate():
-    from texture.pack import plan_layouts
+    from texture.policy import DEFAULT_POLICY
+    from texture.scale_search import plan_layouts
 
     p = _rectangle_island()
     island = np.zeros(len(p.faces), np.int64)
-    plain = plan_layouts([(p.uv, p.faces, island)], resolution=256, padding=2, workers=1)[0]
+    kw = {"candidates": DEFAULT_POLICY.pack_candidates, "resolution": 256, "padding": 2, "workers": 1}
+    plain = plan_layouts([(p.uv, p.faces, island)], **kw)[0]
     assert plain is not None and 0.3 < plain.utilization < 1.0
     # one rectangle cannot fill more than the square: an estimate above 1 prunes every search
-    assert plan_layouts([(p.uv, p.faces, island)], resolution=256, padding=2, workers=1, min_estimate=1.01) == [None]
+    assert plan_layouts([(p.uv, p.faces, island)], min_estimate=1.01, **kw) == [None]
 
 
 @pytest.mark.parametrize("target", [0.0, 1.0])
@@ -276,91 +280,117 @@ def test_unique_rows_matches_numpy():
     assert len(empty_first) == 0 and len(empty_ids) == 0
 
 
+def _plan(u):
+    from texture.scale_search import Plan
+
+    return None if u is None else Plan(u, 1.0, {}, 1)
+
+
 @pytest.mark.parametrize("relaxed_util, raw_util, kept", [(0.55, 0.62, False), (0.55, 0.58, True),
-                                                          (0.61, 0.70, True)])
-def test_relaxation_is_dropped_only_when_it_costs_the_utilisation_target(sphere_run, monkeypatch,
-                                                                         relaxed_util, raw_util, kept):
+                                                          (0.61, 0.70, True), (None, 0.62, False),
+                                                          (0.55, None, True)])
+def test_relaxation_is_dropped_only_when_it_costs_the_utilisation_target(relaxed_util, raw_util, kept):
     """The charts' own UVs replace the relaxed ones only when the relaxed layouts pack below
-    ``target_utilization`` (0.6) and the unrelaxed reach it (coarse utilisations stubbed here;
-    the layouts and the packing are the real ones)."""
-    import texture.atlas as atlas_mod
-    from texture.pack import Plan
+    the target (0.6) and the unrelaxed reach it."""
+    from texture.policy import keep_relaxed
 
+    assert keep_relaxed(_plan(relaxed_util), _plan(raw_util), 0.6) is kept
+
+
+@pytest.mark.parametrize("target", [0.01, 1.0])
+def test_relax_choice_follows_the_recorded_utilisations(sphere_run, target):
+    """The atlas's relaxation choice agrees with the coarse utilisations it records: the
+    unrelaxed layout is searched only when the relaxed one misses the target, dropped only when
+    it reaches it, and the packed UVs are those of the kept variant (distortion)."""
     charts = load_charts(sphere_run / "charts.npz")
-    cfg = AtlasConfig(resolution=128, padding=2, max_islands=0)
-    real_layout, calls = atlas_mod._layout, []
-
-    def layout(pieces, c):  # first call: the relaxed pieces; a second: the charts' own
-        merged, plan, stats = real_layout(pieces, c)
-        calls.append(len(calls))
-        return merged, Plan(relaxed_util if len(calls) == 1 else raw_util, plan.texels_per_unit, plan.options,
-                            plan.attempts, None), stats
-
-    monkeypatch.setattr(atlas_mod, "_layout", layout)
-    got = build_atlas(charts, cfg)
-    monkeypatch.setattr(atlas_mod, "_layout", real_layout)
+    got = build_atlas(charts, AtlasConfig(resolution=128, padding=2, max_islands=0, target_utilization=target))
     raw = build_atlas(charts, AtlasConfig(resolution=128, padding=2, max_islands=0, relax=RelaxConfig(iterations=0)))
-    assert got.stats["relax_kept"] is kept
-    assert len(calls) == (1 if relaxed_util >= 0.6 else 2)  # the unrelaxed layout only when below target
+    s = got.stats
+    compared = "utilization_coarse_unrelaxed" in s
+    assert compared is (target == 1.0)  # no packing reaches 1: the charts' own UVs are laid out too
+    if compared:
+        assert s["utilization_coarse_relaxed"] < target
+        assert s["relax_kept"] is not (s["utilization_coarse_unrelaxed"] is not None
+                                       and s["utilization_coarse_unrelaxed"] >= target)
+    else:
+        assert s["relax_kept"] is True
     d_got = measure(got.mesh).summary["distortion_metric"]
     d_raw = measure(raw.mesh).summary["distortion_metric"]
-    if kept:
+    if s["relax_kept"]:
         assert d_got < d_raw - RelaxConfig().min_gain
     else:
         assert d_got == pytest.approx(d_raw, rel=1e-6)
 
 
-@pytest.mark.parametrize("target, searched", [(0.6, [1]), (0.72, [1, 2])])
-def test_off_centre_layouts_searched_best_guess_first_until_the_target(monkeypatch, target, searched):
-    """Guesses 0.5, 0.7, 0.66, 0.2: those more than PRUNE_MARGIN under the target are never
-    searched; the others are searched best guess first, one batch (here one layout) at a time,
-    from their guesses, until a search reaches the target."""
-    import texture.atlas as A
-    from texture.pack import PRUNE_MARGIN, Plan
+@pytest.mark.parametrize("target, order", [(0.6, [1, 2]), (0.72, [1, 2]), (0.8, [1])])
+def test_off_centre_order_prunes_far_guesses_and_ranks_the_rest(target, order):
+    """Guesses 0.5, 0.7, 0.66, 0.2: those more than the margin (0.07) under the target are never
+    searched; the others are searched best guess first."""
+    from texture.policy import off_centre_order
+    from texture.scale_search import Estimate
 
-    guesses = [0.5, 0.7, 0.66, 0.2]
-    calls = []
-    monkeypatch.setattr(A, "estimate_layouts", lambda layouts, **k: [(g, 100.0 * g) for g in guesses])
-
-    def plan(layouts, *, starts, **k):
-        calls.append(starts)
-        return [Plan(s / 100.0 + 0.01, s, {}, 1) for s in starts]  # each search ends 0.01 above its guess
-
-    monkeypatch.setattr(A, "plan_layouts", plan)
-    cfg = AtlasConfig(target_utilization=target)
-    plans = A._off_centre_plans([("layout", i) for i in range(4)], cfg, workers=1)
-    assert calls == [[100.0 * guesses[i]] for i in searched]
-    got = {i: p.utilization for i, p in enumerate(plans) if p is not None}
-    assert got == {i: pytest.approx(guesses[i] + 0.01) for i in searched}
-    assert all(guesses[i] >= target - PRUNE_MARGIN for i in searched)
+    guesses = [Estimate(0.5, 50.0), Estimate(0.7, 70.0), Estimate(0.66, 66.0), None, Estimate(0.2, 20.0)]
+    assert off_centre_order(guesses, target, 0.07) == order
+    assert all(guesses[i].utilization >= target - 0.07 for i in order)
 
 
-@pytest.mark.parametrize("target", [0.55, 0.6])
-def test_round_one_tries_other_options_for_all_layouts_until_the_target(sphere_run, monkeypatch, target):
-    """Round 1 packs every layout with xatlas's default options, then the other option sets:
-    for the uncut islands and the best cut only once a layout reached the target (0.55 here),
-    else for every layout. Each layout keeps its better plan."""
-    import texture.atlas as A
-    from texture.pack import PACK_CANDIDATES, Plan
+@pytest.mark.parametrize("target", [0.01, 1.0])
+def test_off_centre_search_stops_at_the_target_and_skips_far_guesses(sphere_run, target):
+    """On the sphere's real off-centre cut layouts: a layout is searched only if its first
+    guess is within the policy's margin of the target; with an unreachable target every such
+    layout is searched, with a reachable one only the best guess (one layout per batch)."""
+    from texture.layout_search import cut_candidates, off_centre_plans, ranked_islands
+    from texture.layouts import prepare
+    from texture.policy import DEFAULT_POLICY, off_centre_order
+    from texture.scale_search import estimate_layouts
 
-    calls = []
-    default = [0.50, 0.55, 0.52]  # uncut, cut of the largest cap, cut of the other
-    other = [0.58, 0.50, 0.51]  # without rotations: better for the uncut islands only
+    charts = load_charts(sphere_run / "charts.npz")
+    layout = [prepare(p) for p in trim_charts(charts, AtlasConfig().trim).pieces]
+    goal = AtlasConfig(resolution=256, padding=2, max_islands=6, target_utilization=target)
+    wider = cut_candidates(layout, ranked_islands(layout), DEFAULT_POLICY.off_centre_cuts, goal.max_islands)
+    arrays = [c.islands for c in wider]
+    assert len(arrays) == 8  # two caps x two axes x two positions
+    guesses = estimate_layouts(arrays, resolution=256, padding=2, options=DEFAULT_POLICY.pack_candidates[0])
+    order = off_centre_order(guesses, target, DEFAULT_POLICY.prune_margin)
+    plans = off_centre_plans(arrays, goal, workers=1)
+    searched = [i for i, p in enumerate(plans) if p is not None]
+    assert order and set(searched) <= set(order)
+    if target == 1.0:
+        assert searched == sorted(order)
+        assert all(p.utilization < target for p in plans if p is not None)
+    else:
+        assert searched == [order[0]] and plans[order[0]].utilization >= target
 
-    def plan(layouts, *, candidates, **k):
-        calls.append((len(layouts), candidates))
-        if candidates == PACK_CANDIDATES[:1]:
-            return [Plan(u, 1.0, dict(candidates[0]), 1) for u in default[:len(layouts)]]
-        return [Plan(u, 1.0, dict(candidates[0]), 1) for u in ([other[0], other[1]] if len(layouts) == 2 else other)]
 
-    monkeypatch.setattr(A, "plan_layouts", plan)
+@pytest.mark.parametrize("target", [0.01, 1.0])
+def test_other_options_for_every_layout_until_the_target(target):
+    """Round one packs every layout with xatlas's default options, then the other option sets:
+    for the uncut islands and the best cut once a layout reached the target, else for all."""
+    from texture.policy import best_cut, other_options_for
+
+    plans = [_plan(u) for u in (0.50, 0.55, None, 0.52)]
+    assert best_cut(plans) == 1
+    assert other_options_for(plans, target) == ([0, 1] if target <= 0.55 else [0, 1, 2, 3])
+    assert other_options_for(plans, 0.0) == [0, 1, 2, 3]  # target 0: "no target", never reached
+
+
+@pytest.mark.parametrize("target", [0.0, 0.6, 1.0])
+def test_layout_search_keeps_the_best_layout_only_with_the_split_gain(sphere_run, target):
+    """Whatever the rounds searched, the layout kept is the uncut islands unless the best cut
+    found gains ``split_gain`` over them, and then it is that best cut; its plan packs as recorded."""
+    from texture.layout_search import search_layouts
+    from texture.layouts import island_count, prepare
+
     charts = load_charts(sphere_run / "charts.npz")
     cfg = AtlasConfig(resolution=256, padding=2, target_utilization=target, relax=RelaxConfig(iterations=0))
-    monkeypatch.setattr(A, "_off_centre_plans", lambda layouts, cfg: [None] * len(layouts))  # round 2: nothing
-    trimmed = trim_charts(charts, cfg.trim).pieces
-    assert sum(int(uv_islands(p.faces, p.uv).max()) + 1 for p in trimmed if len(p.faces)) == 2  # two caps
-    _, plan_kept, stats = A._layout(trimmed, cfg)
-    assert calls == [(3, PACK_CANDIDATES[:1]), (2 if max(default) >= target else 3, PACK_CANDIDATES[1:])]
-    assert stats["utilization_coarse_uncut"] == 0.58 and stats["utilization_coarse_cuts"] == [0.55, 0.52]
-    # the best cut (0.55) does not gain split_gain over the uncut islands' better plan (0.58)
-    assert stats["split_islands"] == 0 and plan_kept.utilization == 0.58 and plan_kept.options == PACK_CANDIDATES[1]
+    layout = [prepare(p) for p in trim_charts(charts, cfg.trim).pieces]
+    assert island_count(layout) == 2  # two caps
+    choice = search_layouts(layout, cfg)
+    s = choice.stats.to_json()
+    cuts = [u for u in s["utilization_coarse_cuts"] + s.get("utilization_coarse_off_centre_cuts", []) if u is not None]
+    split = max(cuts) >= s["utilization_coarse_uncut"] + cfg.split_gain
+    assert s["split_islands"] == int(split)
+    assert int(choice.merged.island.max()) + 1 == 2 + int(split)
+    assert choice.plan.utilization == (max(cuts) if split else s["utilization_coarse_uncut"])
+    if split:
+        assert s["utilization_coarse_cut"] == max(cuts)

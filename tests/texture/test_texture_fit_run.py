@@ -54,7 +54,7 @@ def test_export_on_folded_single_chart_torus_fit(tmp_path):
     # atlas; export used to fail with "packed island 0 is not a rigid copy of its input"
     from texture.export import read_back
     from texture.islands import uv_islands
-    from texture.pack import verify_packing
+    from texture.verify import verify_packing
 
     src = tmp_path / "torus.ply"
     shapes.torus().export(src)

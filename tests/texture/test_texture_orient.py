@@ -187,13 +187,16 @@ def test_fragment_islands_only_within_the_island_budget(max_islands, islands):
     # cannot take and that is large enough to be an island: with it, the atlas has 2 islands.
     # A budget of 1 island takes the plain orientation instead (speck left folded), unless
     # the atlas exceeds the budget without fragment islands too (next test)
-    from texture.atlas import AtlasConfig, _oriented, island_count
+    from texture.atlas import AtlasConfig
+    from texture.atlas_stages import orient_stage
+    from texture.layouts import island_count
     from texture.trim import TrimConfig
 
     cfg = AtlasConfig(trim=TrimConfig(min_island_fraction=0.25 / 4.0), orient_fragment_island=0.1 / 4.0,
                       max_islands=max_islands)
-    out, stats = _oriented([_piece(_flat)], _speck_reference(), cfg)
-    assert island_count(out) == islands
+    oriented = orient_stage([_piece(_flat)], _speck_reference(), cfg)
+    out, stats = [pp.source for pp in oriented.layout], oriented.stats
+    assert island_count(oriented.layout) == islands
     assert stats["orient_fragment_islands"] is (islands == 2)
     disc = np.pi * 0.25 ** 2
     folded = sum(folded_area(p, _speck_reference()) for p in out)
@@ -201,14 +204,16 @@ def test_fragment_islands_only_within_the_island_budget(max_islands, islands):
 
 
 def test_fragment_islands_kept_when_over_the_budget_anyway():
-    from texture.atlas import AtlasConfig, _oriented, island_count
+    from texture.atlas import AtlasConfig
+    from texture.atlas_stages import orient_stage
+    from texture.layouts import island_count
     from texture.trim import TrimConfig
 
     far = _piece(lambda uv: _flat(uv) + [10.0, 0.0, 0.0])  # a second part, away from the speck
     cfg = AtlasConfig(trim=TrimConfig(min_island_fraction=0.25 / 8.0), orient_fragment_island=0.1 / 8.0,
                       max_islands=1)
-    out, stats = _oriented([_piece(_flat), far], _speck_reference(), cfg)
-    assert island_count(out) == 3 and stats["orient_fragment_islands"] is True
+    oriented = orient_stage([_piece(_flat), far], _speck_reference(), cfg)
+    assert island_count(oriented.layout) == 3 and oriented.stats["orient_fragment_islands"] is True
 
 
 def test_pieces_split_in_processes_match_one_by_one(monkeypatch):

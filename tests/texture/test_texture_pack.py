@@ -15,16 +15,21 @@ from mnacore.charts import load_charts, save_charts
 from mnacore.frame import Normalization
 from mnacore.grid import grid_faces
 from mnacore.triangles import triangle_areas
-from texture.atlas import AtlasConfig, _merge, build_atlas
+from texture.atlas import AtlasConfig, build_atlas
 from texture.export import read_back
 from texture.islands import uv_islands
+from texture.islandset import IslandSet
+from texture.layouts import merge_pieces
 from texture.mirrors import mirrored_islands
 from texture.outlines import island_outlines
-from texture.pack import pack_islands, verify_packing
+from texture.pack import pack_islands
+from texture.policy import DEFAULT_POLICY, SearchPolicy
 from texture.raster import coverage_count
 from texture.relax import RelaxConfig
+from texture.scale_search import plan_layouts, search
 from texture.similarity import similarity_fit
 from texture.trim import trim_charts
+from texture.verify import verify_packing
 
 
 def _rot(a):
@@ -116,13 +121,63 @@ def test_pack_folded_dominant_and_degenerate_islands():
     assert pk.utilization > 0.3
 
 
-def test_pack_falls_back_to_shelf_when_xatlas_never_fits(monkeypatch):
+def test_pack_falls_back_to_shelf_when_xatlas_never_fits():
     uv, faces, island = _awkward_islands()
-    monkeypatch.setattr(pack, "_attempt", lambda *a, **k: None)  # e.g. an island xatlas always splits
-    pk = pack_islands(uv, faces, island, resolution=128, padding=2)
-    assert pk.packer == "shelf"
+    # a policy with no xatlas option set to try stands for an input xatlas never packs validly
+    # (e.g. an island it always splits)
+    pk = pack_islands(uv, faces, island, resolution=128, padding=2, policy=SearchPolicy(pack_candidates=()))
+    assert pk.packer == "shelf" and pk.attempts == 0
     assert_valid_packing(pk, uv, faces, island)
+    assert mirrored_islands(IslandSet.of(uv, faces, island), pk.uv) == []
     assert pk.utilization > 0.1
+
+
+#: policies that search less (or differently) than the default: the packing's guarantees
+#: must not depend on the policy, only its utilisation may
+POLICIES = {
+    "default": SearchPolicy(),
+    "no_turns": SearchPolicy(pack_candidates=({"rotate_charts": False},)),
+    "turns_only": SearchPolicy(pack_candidates=({},)),
+    "hasty": SearchPolicy(max_attempts=3, mirror_tries=1, unmirror_steps=0),
+    "shelf": SearchPolicy(pack_candidates=()),
+}
+
+
+def _long_thin_islands(n=14, seed=0):
+    rng = np.random.default_rng(seed)
+    uvs, faces, island, off = [], [], [], 0
+    for k in range(n):
+        u, f = _centred_grid(5, 1.0)
+        u = u * [rng.uniform(1.5, 3.0), rng.uniform(0.3, 0.6)]  # long and thin: turning helps packing
+        uvs.append(u @ _rot(rng.uniform(0, np.pi)).T)
+        faces.append(f + off)
+        island.append(np.full(len(f), k))
+        off += len(u)
+    return np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
+
+
+@pytest.mark.parametrize("name", sorted(POLICIES))
+@pytest.mark.parametrize("islands", ["awkward", "long_thin"])
+def test_any_policy_packs_validly_and_deterministically(name, islands):
+    """Every policy's packing: no texel covered twice, no island mirrored, every island inside
+    the unit square as a rigid copy at one scale, utilisation above a bound (0.3 for xatlas,
+    0.1 for the shelf), and the same bytes when packed again."""
+    uv, faces, island = _awkward_islands() if islands == "awkward" else _long_thin_islands()
+    policy = POLICIES[name]
+    pk = pack_islands(uv, faces, island, resolution=128, padding=2, policy=policy)
+    assert_valid_packing(pk, uv, faces, island)
+    assert mirrored_islands(IslandSet.of(uv, faces, island), pk.uv) == []
+    assert pk.packer == ("shelf" if not policy.pack_candidates else "xatlas")
+    assert pk.utilization > (0.1 if pk.packer == "shelf" else 0.3)
+    again = pack_islands(uv, faces, island, resolution=128, padding=2, policy=policy)
+    assert again.uv.tobytes() == pk.uv.tobytes() and again.utilization == pk.utilization
+
+
+def test_default_policy_packs_at_least_as_tight_as_the_shelf():
+    uv, faces, island = _long_thin_islands()
+    best = pack_islands(uv, faces, island, resolution=128, padding=2)
+    shelf = pack_islands(uv, faces, island, resolution=128, padding=2, policy=POLICIES["shelf"])
+    assert best.utilization >= shelf.utilization
 
 
 def _write_folded_run(run):
@@ -144,7 +199,7 @@ def test_folded_single_chart_atlas_keeps_invariants(tmp_path):
     charts = load_charts(run / "charts.npz")
     # the packer's invariants hold against the UVs it was given: the charts' own (no relaxation)
     atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2, relax=RelaxConfig(iterations=0)))
-    _, uv_local, faces, _, island = _merge(trim_charts(charts, AtlasConfig().trim).pieces)
+    uv_local, faces, island = merge_pieces(trim_charts(charts, AtlasConfig().trim).pieces).islands
     np.testing.assert_array_equal(atlas.mesh.faces, faces)
     assert_valid_packing(atlas.packing, uv_local, faces, island)
     assert atlas.stats["utilization"] > 0.5
@@ -213,11 +268,11 @@ def test_packing_through_outlines_matches_packing_faces():
     island = np.repeat([0, 1, 2], [len(a_f), len(b_f), len(c_f)])
     got = {}
     for outlines in (True, False):
-        isl = pack._Islands(uv, faces, island, outlines=outlines)
-        assert len(isl.xatlas_mesh[1]) == (2 + 8 + 2 if outlines else len(faces))
-        found = pack._search(isl, 256, 2, {}, 16)
+        isl = IslandSet.of(uv, faces, island, outlines=outlines)
+        assert len(isl.outline.faces) == (2 + 8 + 2 if outlines else len(faces))
+        found = search(isl, 256, 2, {}, 16)
         assert found is not None
-        tpu, px, _ = found
+        tpu, px = found.tpu, found.px
         pk = pack.Packing(px / 256, tpu / 256, tpu, 256, 2, 0.0, 0, 0.0, 0)
         assert_valid_packing(pk, uv, faces, island)
         got[outlines] = verify_packing(px / 256, faces, island, 256)[1]
@@ -239,9 +294,9 @@ def test_whole_island_beside_outlines_keeps_its_fit_weights():
     b_uv[4] += [0.12, 0.0]
     parts.append(b_uv), faces.append(b_f + off), island.append(np.full(len(b_f), 5))
     uv, faces, island = np.concatenate(parts), np.concatenate(faces), np.concatenate(island)
-    isl = pack._Islands(uv, faces, island)
-    assert (isl.xatlas_mesh[2] < 5).sum() == 40 and (isl.xatlas_mesh[2] == 5).sum() == len(b_f)
-    assert isl.weight[np.unique(b_f + off)].sum() > 0
+    isl = IslandSet.of(uv, faces, island)
+    assert (isl.outline.island < 5).sum() == 40 and (isl.outline.island == 5).sum() == len(b_f)
+    assert isl.outline.weight[np.unique(b_f + off)].sum() > 0
     pk = pack_islands(uv, faces, island, resolution=256, padding=2)
     assert pk.packer == "xatlas"
     assert_valid_packing(pk, uv, faces, island)
@@ -261,8 +316,9 @@ def test_packed_islands_are_never_mirrored():
         island.append(np.full(len(f), k))
         off += len(u)
     uv, faces, island = np.concatenate(uvs), np.concatenate(faces), np.concatenate(island)
-    isl = pack._Islands(uv, faces, island)
-    raw = pack.plan_packing(uv, faces, island, resolution=256, padding=2)
+    isl = IslandSet.of(uv, faces, island)
+    raw = plan_layouts([(uv, faces, island)], candidates=DEFAULT_POLICY.pack_candidates, resolution=256,
+                       padding=2)[0]
     assert mirrored_islands(isl, raw.uv), "the plan (turns allowed) mirrors some island"
     packed = pack.pack_islands(uv, faces, island, resolution=256, padding=2)
     assert mirrored_islands(isl, packed.uv) == []

@@ -1,0 +1,139 @@
+"""The atlas stages' measurements as typed results, and their ``atlas.json`` form.
+
+``atlas.json``'s ``atlas`` section is :meth:`AtlasStats.to_json`: one flat mapping whose
+keys (and their order) are a contract of ``mna export``; a key a stage did not reach is
+left out, not written as null.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mnacore.charts import ChartGrids
+from mnacore.pointmetrics import POINTS, chamfer_fscore
+
+from .geometry import sample_surface
+from .layout_search import LayoutStats
+
+
+def _present(pairs) -> dict:
+    return {k: v for k, v in pairs if v is not None}
+
+
+@dataclass
+class RelaxStats:
+    """The relaxation stage: SLIM iterations, islands stopped by a border crossing, the
+    3D-area weighted mean of ``tr g + tr g^-1 - 4`` at the isometric scale before and after
+    (None: not relaxed), and whether the relaxed UVs were kept (None: no choice was made)."""
+
+    iterations_max: int = 0
+    stopped_by_crossing: int = 0
+    energy_before: float | None = None
+    energy_after: float | None = None
+    kept: bool | None = None
+    compared_unrelaxed: bool = False
+    """Whether the charts' own UVs were laid out too (then the two coarse utilisations are set)."""
+    coarse_relaxed: float | None = None
+    coarse_unrelaxed: float | None = None
+
+    def to_json(self) -> dict:
+        out = {"relax_iterations_max": self.iterations_max, "relax_stopped_by_crossing": self.stopped_by_crossing}
+        out.update(_present([("relax_energy_before", self.energy_before), ("relax_energy_after", self.energy_after),
+                             ("relax_kept", self.kept)]))
+        if self.compared_unrelaxed:
+            out.update(utilization_coarse_relaxed=self.coarse_relaxed,
+                       utilization_coarse_unrelaxed=self.coarse_unrelaxed)
+        return out
+
+
+@dataclass
+class CoverageStats:
+    """F-score and Chamfer distance of the run's kept mesh and of the trimmed atlas against
+    the reference (the input, else an independent sample of the kept mesh); None where there
+    is nothing to compare."""
+
+    reference: str
+    fscore_trimmed: float | None = None
+    chamfer_trimmed: float | None = None
+    fscore_kept: float | None = None
+    chamfer_kept: float | None = None
+    fscore_drop: float | None = None
+
+    def to_json(self) -> dict:
+        return {"coverage_reference": self.reference,
+                **_present([("fscore_trimmed", self.fscore_trimmed), ("chamfer_trimmed", self.chamfer_trimmed),
+                            ("fscore_kept", self.fscore_kept), ("chamfer_kept", self.chamfer_kept),
+                            ("fscore_drop", self.fscore_drop)])}
+
+
+def coverage_stats(charts: ChartGrids, xyz: np.ndarray, faces: np.ndarray, reference: np.ndarray | None,
+                   seed: int) -> CoverageStats:
+    """F-score of the run's kept mesh and of the trimmed atlas ``(xyz, faces)`` against ``reference`` (unit frame)."""
+    trimmed_pts, _ = sample_surface(xyz, faces, POINTS, seed)
+    kept_pts = ref = None
+    if charts.kept_vertices is not None and len(charts.kept_faces):
+        kept = charts.normalization.apply(charts.kept_vertices)
+        kept_pts, _ = sample_surface(kept, charts.kept_faces, POINTS, seed + 1)
+        if reference is None:  # an independent sample, so "before" is not compared with itself
+            ref, _ = sample_surface(kept, charts.kept_faces, POINTS, seed + 2)
+    if reference is not None:
+        ref = reference
+    out = CoverageStats("input" if reference is not None else "kept_mesh")
+    if ref is None:
+        return out
+    after = chamfer_fscore(trimmed_pts, ref)
+    out.fscore_trimmed, out.chamfer_trimmed = after.fscore, after.chamfer
+    if kept_pts is not None:
+        before = chamfer_fscore(kept_pts, ref)
+        out.fscore_kept, out.chamfer_kept = before.fscore, before.chamfer
+        out.fscore_drop = before.fscore - after.fscore
+    return out
+
+
+@dataclass
+class AtlasStats:
+    """Everything :func:`texture.atlas.build_atlas` measured, stage by stage.
+
+    ``trim`` and ``orient`` are the mappings :func:`texture.trim.trim_charts` and
+    :func:`texture.orient.orient_pieces` report (percent of the area, counts).
+    """
+
+    charts: int
+    charts_used: int
+    islands: int
+    faces: int
+    trim: dict
+    orient: dict
+    relax: RelaxStats
+    layout: LayoutStats
+    coverage: CoverageStats
+    utilization: float
+    packer: str
+    uv_scale: float
+    texels_per_chart_unit: float
+    resolution: int
+    padding: int
+    timings: dict = field(default_factory=dict)
+    """Seconds per stage: trim, orient, relax, pack."""
+
+    @property
+    def doubly_covered_percent(self) -> float:
+        return self.trim["doubly_covered_percent"]
+
+    @property
+    def fscore_drop(self) -> float:
+        """F-score points lost by trimming (NaN when there was no reference to measure it)."""
+        drop = self.coverage.fscore_drop
+        return float("nan") if drop is None else drop
+
+    def to_json(self, timings: bool = True) -> dict:
+        """The ``atlas`` section of ``atlas.json`` (with ``timings`` unless told otherwise)."""
+        out = {"charts": self.charts, "charts_used": self.charts_used, "islands": self.islands, "faces": self.faces,
+               **self.trim, **self.orient, **self.relax.to_json(), **self.layout.to_json(),
+               **self.coverage.to_json(), "utilization": self.utilization, "packer": self.packer,
+               "uv_scale": self.uv_scale, "texels_per_chart_unit": self.texels_per_chart_unit,
+               "resolution": self.resolution, "padding": self.padding}
+        if timings:
+            out["timings"] = dict(self.timings)
+        return out
