@@ -3,7 +3,7 @@
 A preset is a YAML or JSON file (``scenes/studio.yaml`` and ``scenes/plain.yaml`` ship
 with the package; a user can pass their own path). It is parsed into the small frozen
 dataclasses below, with every key checked: an unknown key, a wrong type or an
-out-of-range value is a ``ValueError`` naming the file and the key path
+out-of-range value is an ``MnaError`` (a ``ValueError``) naming the file and the key path
 (``lights[0].intensity``), never a silent default.
 
 Lengths are in units of the mesh's bounding-sphere radius ``r`` (so one preset frames a
@@ -22,6 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+
+from mnacore.configs import ConfigError, from_dict
+from mnacore.errors import MnaError
 
 PRESET_DIR = Path(__file__).resolve().parent
 BUILTIN_PRESETS = ("studio", "plain")
@@ -119,11 +122,8 @@ class Preset:
     """path-tracer bounce limit."""
 
 
-_NESTED = {"camera": CameraSpec, "ground": GroundSpec, "material": MaterialSpec, "heatmap": HeatmapSpec}
-
-
 def _fail(source: str, key: str, msg: str):
-    raise ValueError(f"preset {source}: {key}: {msg}")
+    raise MnaError(f"preset {source}: {key}: {msg}")
 
 
 def _number(source: str, key: str, value: Any, lo: float | None = None, hi: float | None = None) -> float:
@@ -134,66 +134,12 @@ def _number(source: str, key: str, value: Any, lo: float | None = None, hi: floa
     return float(value)
 
 
-def _vector(source: str, key: str, value: Any, n: int = 3) -> tuple[float, ...]:
-    if not isinstance(value, (list, tuple)) or len(value) != n:
-        _fail(source, key, f"expected a list of {n} numbers, got {value!r}")
-    return tuple(_number(source, f"{key}[{i}]", v) for i, v in enumerate(value))
-
-
-def _color(source: str, key: str, value: Any) -> tuple[float, float, float]:
-    vec = _vector(source, key, value)
-    for i, v in enumerate(vec):
-        _number(source, f"{key}[{i}]", v, 0.0, None)
-    return vec
-
-
-def _build(cls, source: str, prefix: str, data: Any):
-    """Strictly build dataclass ``cls`` from a mapping: unknown keys and bad types raise."""
-    if not isinstance(data, dict):
-        _fail(source, prefix or "<root>", f"expected a mapping, got {type(data).__name__}")
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - set(fields))
-    if unknown:
-        _fail(source, f"{prefix}{unknown[0]}", f"unknown key; allowed: {', '.join(fields)}")
-    kwargs = {}
-    for name, value in data.items():
-        key = f"{prefix}{name}"
-        default = getattr(cls(), name) if name not in _NESTED else None
-        if name in _NESTED and cls is Preset:
-            kwargs[name] = _build(_NESTED[name], source, f"{key}.", value)
-        elif name == "views":
-            if not isinstance(value, dict) or not value:
-                _fail(source, key, "expected a non-empty mapping of view name -> {azimuth, elevation}")
-            kwargs[name] = {str(k): _build(ViewSpec, source, f"{key}.{k}.", v) for k, v in value.items()}
-        elif name == "lights":
-            if not isinstance(value, list):
-                _fail(source, key, "expected a list of lights")
-            kwargs[name] = tuple(_build(LightSpec, source, f"{key}[{i}].", v) for i, v in enumerate(value))
-        elif name == "checker_colors":
-            if not isinstance(value, list) or len(value) != 2:
-                _fail(source, key, "expected two colours")
-            kwargs[name] = tuple(_color(source, f"{key}[{i}]", c) for i, c in enumerate(value))
-        elif name in ("up", "front"):
-            kwargs[name] = _vector(source, key, value)
-        elif name in ("color", "base_color") or (name == "background" and value is not None):
-            kwargs[name] = _color(source, key, value)
-        elif name == "background":
-            kwargs[name] = None
-        elif isinstance(default, bool):
-            if not isinstance(value, bool):
-                _fail(source, key, f"expected true or false, got {value!r}")
-            kwargs[name] = value
-        elif isinstance(default, int):
-            kwargs[name] = int(_number(source, key, value, 1, None))
-        elif isinstance(default, float):
-            kwargs[name] = _number(source, key, value)
-        elif isinstance(default, str):
-            if not isinstance(value, str):
-                _fail(source, key, f"expected a string, got {value!r}")
-            kwargs[name] = value
-        else:  # pragma: no cover - every field is handled above
-            raise AssertionError(key)
-    return cls(**kwargs)
+def _colors(preset: Preset) -> list[tuple[str, tuple[float, float, float]]]:
+    """(key, colour) of every colour in the preset."""
+    out = [("ground.color", preset.ground.color), ("material.base_color", preset.material.base_color)]
+    out += [(f"material.checker_colors[{i}]", c) for i, c in enumerate(preset.material.checker_colors)]
+    out += [(f"lights[{i}].color", light.color) for i, light in enumerate(preset.lights)]
+    return out + ([("background", preset.background)] if preset.background is not None else [])
 
 
 def _check(preset: Preset, source: str) -> Preset:
@@ -212,6 +158,10 @@ def _check(preset: Preset, source: str) -> Preset:
     _number(source, "material.checker_squares", preset.material.checker_squares, 1.0, 4096.0)
     _number(source, "material.texture_size", preset.material.texture_size, 16, 16384)
     _number(source, "heatmap.percentile", preset.heatmap.percentile, 1.0, 100.0)
+    _number(source, "max_depth", preset.max_depth, 1, None)
+    for key, color in _colors(preset):
+        for i, v in enumerate(color):
+            _number(source, f"{key}[{i}]", v, 0.0, None)
     for i, light in enumerate(preset.lights):
         _number(source, f"lights[{i}].distance", light.distance, 1.0, None)
         _number(source, f"lights[{i}].size", light.size, 0.0, None)
@@ -222,8 +172,13 @@ def _check(preset: Preset, source: str) -> Preset:
 
 
 def preset_from_dict(data: dict, source: str = "<dict>") -> Preset:
-    """Build and validate a preset from plain data (the parsed YAML/JSON)."""
-    return _check(_build(Preset, source, "", data), source)
+    """Build (:func:`mnacore.configs.from_dict`) and validate a preset from plain data (the
+    parsed YAML/JSON); errors name the file and the key path."""
+    try:
+        preset = from_dict(data, Preset, "")
+    except ConfigError as exc:
+        _fail(source, exc.key or "<root>", exc.problem)
+    return _check(preset, source)
 
 
 def load_preset(name_or_path: str | Path | Preset | None = None) -> Preset:
@@ -238,14 +193,14 @@ def load_preset(name_or_path: str | Path | Preset | None = None) -> Preset:
     text_name = str(name_or_path)
     path = PRESET_DIR / f"{text_name}.yaml" if text_name in BUILTIN_PRESETS else Path(text_name)
     if not path.is_file():
-        raise ValueError(f"preset {text_name!r} not found: give one of {', '.join(BUILTIN_PRESETS)} "
+        raise MnaError(f"preset {text_name!r} not found: give one of {', '.join(BUILTIN_PRESETS)} "
                          "or the path of a YAML/JSON preset file")
     text = path.read_text()
     try:
         data = json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (json.JSONDecodeError, yaml.YAMLError) as exc:
         first = str(exc).strip().splitlines()[0]
-        raise ValueError(f"preset {path}: cannot parse: {first}") from None
+        raise MnaError(f"preset {path}: cannot parse: {first}") from None
     data = {} if data is None else data
     data.setdefault("name", path.stem)
     return preset_from_dict(data, str(path))
