@@ -37,6 +37,14 @@ class RelaxStats:
     coarse_relaxed: float | None = None
     coarse_unrelaxed: float | None = None
 
+    @classmethod
+    def from_json(cls, atlas: dict) -> RelaxStats:
+        """The relaxation's stats back from ``atlas.json``'s ``atlas`` section."""
+        return cls(atlas.get("relax_iterations_max", 0), atlas.get("relax_stopped_by_crossing", 0),
+                   atlas.get("relax_energy_before"), atlas.get("relax_energy_after"), atlas.get("relax_kept"),
+                   "utilization_coarse_unrelaxed" in atlas, atlas.get("utilization_coarse_relaxed"),
+                   atlas.get("utilization_coarse_unrelaxed"))
+
     def to_json(self) -> dict:
         out = {"relax_iterations_max": self.iterations_max, "relax_stopped_by_crossing": self.stopped_by_crossing}
         out.update(_present([("relax_energy_before", self.energy_before), ("relax_energy_after", self.energy_after),

@@ -16,7 +16,9 @@ Every row is measured by :func:`texture.harness.measure` with the same reference
 """
 from __future__ import annotations
 
+import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +27,7 @@ from mnacore.atomic import write_json, write_text
 from mnacore.charts import load_charts
 from mnacore.errors import InputError
 
+from .atlas_stats import RelaxStats
 from .export import export_textured, read_back
 from .harness import measure
 from .pipeline import export_run, load_input, make_texture
@@ -40,6 +43,42 @@ COLUMNS = (("charts", "islands", "{:d}"), ("seam_length", "seam length", "{:.2f}
            ("orientation_undecided_area_percent", "undecided %", "{:.3f}"),
            ("uv_overlap_percent", "overlap %", "{:.3f}"),
            ("utilization", "utilization", "{:.2f}"))
+
+
+@dataclass(frozen=True)
+class ExportSummary:
+    """What ``mna compare`` takes from ``RUN/atlas.json``, read once.
+
+    Attributes:
+        atlas: the ``atlas`` section as written (copied into compare.json unchanged).
+        uv_seconds: the UV method's time: trim, orient, relax and pack.
+        export_seconds: the whole export (atlas, texture, write).
+        relax: the relaxation's stats.
+    """
+
+    atlas: dict
+    uv_seconds: float
+    export_seconds: float
+    relax: RelaxStats
+
+    @classmethod
+    def read(cls, path: Path) -> ExportSummary:
+        info = json.loads(Path(path).read_text())
+        t = info["timings"]
+        uv = t["atlas_trim"] + t.get("atlas_orient", 0.0) + t.get("atlas_relax", 0.0) + t["atlas_pack"]
+        return cls(info["atlas"], uv, t["export_total"], RelaxStats.from_json(info["atlas"]))
+
+    @property
+    def islands(self) -> int:
+        return self.atlas["islands"]
+
+    def sentence(self) -> str:
+        """compare.md's line on our atlas."""
+        a = self.atlas
+        return (f"Our atlas: {a['islands']} islands from {a['charts_used']} charts, doubly covered "
+                f"{a['doubly_covered_percent']:.2f} % of the area (before trimming "
+                f"{a['doubly_covered_percent_before']:.1f} %), F-score drop {a.get('fscore_drop', float('nan')):.2f} "
+                "points." + _relax_sentence(self.relax))
 
 
 def _fresh_export(run: Path) -> bool:
@@ -103,17 +142,14 @@ def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, pa
     norm = charts.normalization
     if not _fresh_export(run):
         export_run(run, size=size, padding=padding)
-    import json
-
-    atlas_info = json.loads((run / "atlas.json").read_text())
+    export = ExportSummary.read(run / "atlas.json")
     ours = read_back(run / "mesh.obj")
     harness_kw = harness_context(run)
     mesh_in = harness_kw["reference"]
     rows = []
     m = measure(ours, **harness_kw)
-    t = atlas_info["timings"]
-    rows.append(_row("mna", "reconstruction", m.summary, t["atlas_trim"] + t.get("atlas_orient", 0.0) + t.get("atlas_relax", 0.0) + t["atlas_pack"],
-                     {"export_seconds": t["export_total"], "islands": atlas_info["atlas"]["islands"]}))
+    rows.append(_row("mna", "reconstruction", m.summary, export.uv_seconds,
+                     {"export_seconds": export.export_seconds, "islands": export.islands}))
     opts = XatlasOptions(resolution=size, padding=padding)
     rows.append(_xatlas_row("xatlas", "reconstruction", ours.vertices, ours.faces, opts, run / "xatlas",
                             harness_kw, size, check=False))
@@ -133,9 +169,9 @@ def compare_run(run: str | os.PathLike, sweep: bool = True, size: int = 2048, pa
                                               sweep_mesh[2], o, None, harness_kw, size, check=False))
     result = {"run": str(run), "reference": "input mesh" if mesh_in is not None else "none (closed surface assumed)",
               "normalization": norm.to_json(), "methods": rows, "sweep": sweep_rows,
-              "atlas": atlas_info["atlas"]}
+              "atlas": export.atlas}
     write_json(run / "compare.json", result)
-    write_text(run / "compare.md", to_markdown(result))
+    write_text(run / "compare.md", to_markdown(result, export))
     return result
 
 
@@ -168,28 +204,24 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _relax_sentence(a: dict) -> str:
-    if "relax_energy_before" not in a:
+def _relax_sentence(r: RelaxStats) -> str:
+    if r.energy_before is None:
         return " Islands not relaxed (the charts' own UVs)."
     text = (" Islands relaxed toward an isometry (SLIM): symmetric Dirichlet energy per unit area"
-            f" (0 = isometric) {a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f}, at most "
-            f"{a['relax_iterations_max']} iterations, {a['relax_stopped_by_crossing']} stopped by a border "
+            f" (0 = isometric) {r.energy_before:.3f} -> {r.energy_after:.3f}, at most "
+            f"{r.iterations_max} iterations, {r.stopped_by_crossing} stopped by a border "
             "crossing.")
-    if a.get("relax_kept") is False:
-        text += (f" Not kept: relaxed islands packed to {a['utilization_coarse_relaxed']:.2f} (coarse), the charts' "
-                 f"own UVs to {a['utilization_coarse_unrelaxed']:.2f}, and the target is 0.6.")
+    if r.kept is False:
+        text += (f" Not kept: relaxed islands packed to {r.coarse_relaxed:.2f} (coarse), the charts' "
+                 f"own UVs to {r.coarse_unrelaxed:.2f}, and the target is 0.6.")
     return text
 
 
-def to_markdown(result: dict) -> str:
-    a = result["atlas"]
+def to_markdown(result: dict, export: ExportSummary) -> str:
     parts = [f"# compare: {result['run']}", "",
              LEGEND + f" Reference surface: {result['reference']}.", "",
              table(result["methods"]), "",
-             f"Our atlas: {a['islands']} islands from {a['charts_used']} charts, doubly covered "
-             f"{a['doubly_covered_percent']:.2f} % of the area (before trimming "
-             f"{a['doubly_covered_percent_before']:.1f} %), F-score drop {a.get('fscore_drop', float('nan')):.2f} points."
-             + _relax_sentence(a), ""]
+             export.sentence(), ""]
     if result["sweep"]:
         parts += ["## xatlas sweep (max_cost x max_iterations)", "", table(result["sweep"]), ""]
     return "\n".join(parts)
