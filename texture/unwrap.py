@@ -148,38 +148,23 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
     return mesh, face_island, {"isolated_degenerate_faces": isolated}
 
 
-def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
-    """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
-    cfg = cfg or UnwrapConfig()
-    t = {}
-    t0 = time.perf_counter()
-    prep = prepare_mesh(vertices, faces)
-    norm = charts.normalization
-    xyz = norm.apply(prep.work_vertices)
-    t["prepare"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
+def _assigned_labels(xyz, prep, charts: ChartGrids, cfg: UnwrapConfig):
+    """(face labels: a chart, or ``n_charts + component`` for a component no chart reaches;
+    the assignment; per component whether a chart reached it)."""
     asg = assign_faces(xyz, prep.work_faces, chart_surfaces(charts), cfg.near_tol, cfg.far_tol)
-    area = triangle_areas(xyz, prep.work_faces)
     comp = prep.component
     reached = np.bincount(comp, weights=(~asg.far).astype(float), minlength=prep.n_components) > 0
-    fallback = ~reached[comp]
-    label = np.where(fallback, charts.n_charts + comp, asg.label)
-    t["assign"] = time.perf_counter() - t0
+    return np.where(~reached[comp], charts.n_charts + comp, asg.label), asg, reached
 
-    t0 = time.perf_counter()
-    adj = face_adjacency(xyz, prep.work_faces)
-    label, smoothed = smooth_borders(label, adj, cfg.smooth_passes)
-    label, clean_stats = clean_labels(label, area, comp, adj, cfg.min_fraction)
-    clean_stats["smoothed_faces"] = smoothed
-    reg = regions(label, adj)
-    t["clean"] = time.perf_counter() - t0
 
+def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig) -> tuple[list, dict, dict]:
+    """(islands of the whole components and of every other region, flatten stats, timings)."""
     t0 = time.perf_counter()
+    comp = prep.component
     fstats = {"region_splits": 0, "cut_edges": 0}
     islands, whole = whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
     fstats["whole_components"] = len(whole)
-    t["whole"] = time.perf_counter() - t0
+    t = {"whole": time.perf_counter() - t0}
     t0 = time.perf_counter()
     order = np.argsort(reg, kind="stable")
     bounds = np.searchsorted(reg[order], np.arange(int(reg.max()) + 2))
@@ -189,25 +174,13 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
             continue
         islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
     t["flatten"] = time.perf_counter() - t0
+    return islands, fstats, t
 
-    t0 = time.perf_counter()
-    relax_stats = relax_islands([isl for isl in islands if isl.label != WHOLE], cfg)
-    t["relax"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    slit_stats = slit_islands([isl for isl in islands if isl.label != WHOLE], cfg)
-    t["slits"] = time.perf_counter() - t0
-
-    islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), comp)
-    fstats["whole_preferred"] = swapped
-
-    t0 = time.perf_counter()
-    islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
-    t["split"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    # every island counter-clockwise like the input's winding (no island mirrored as seen
-    # from outside): an island whose faces all turned clockwise is reflected in u
+def _packed(islands: list, cfg: UnwrapConfig):
+    """(packing, vertex offset of each island, islands reflected): every island counter-clockwise
+    like the input's winding (no island mirrored as seen from outside; one whose faces all
+    turned clockwise is reflected in u), then packed."""
     mirrored = 0
     for isl in islands:
         if signed_areas(isl.uv, isl.faces).sum() < 0:
@@ -218,29 +191,62 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
     all_island = np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands])
     packing = pack_islands(all_uv, all_faces, all_island, resolution=cfg.resolution, padding=cfg.padding)
-    packed_uv = packing.uv  # the packer never mirrors an island (texture.pack)
-    t["pack"] = time.perf_counter() - t0
+    return packing, offsets, mirrored  # the packer never mirrors an island (texture.pack)
 
-    mesh, face_island, out_stats = _output_mesh(prep, islands, packed_uv, offsets)
+
+def _pack_stats(packing) -> dict:
+    return {"utilization": packing.utilization, "packer": packing.packer, "scale": packing.scale,
+            "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
+            "padding": packing.padding}
+
+
+def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
+    """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
+    cfg = cfg or UnwrapConfig()
+    t = {}
+    t0 = time.perf_counter()
+    prep = prepare_mesh(vertices, faces)
+    xyz = charts.normalization.apply(prep.work_vertices)
+    t["prepare"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    label, asg, reached = _assigned_labels(xyz, prep, charts, cfg)
+    fallback = ~reached[prep.component]
+    area = triangle_areas(xyz, prep.work_faces)
+    t["assign"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    adj = face_adjacency(xyz, prep.work_faces)
+    label, smoothed = smooth_borders(label, adj, cfg.smooth_passes)
+    label, clean_stats = clean_labels(label, area, prep.component, adj, cfg.min_fraction)
+    clean_stats["smoothed_faces"] = smoothed
+    reg = regions(label, adj)
+    t["clean"] = time.perf_counter() - t0
+
+    islands, fstats, t_flat = _flattened(xyz, prep, label, reg, cfg)
+    t.update(t_flat)
+    t0 = time.perf_counter()
+    relax_stats = relax_islands([isl for isl in islands if isl.label != WHOLE], cfg)
+    t["relax"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    slit_stats = slit_islands([isl for isl in islands if isl.label != WHOLE], cfg)
+    t["slits"] = time.perf_counter() - t0
+    islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), prep.component)
+    fstats["whole_preferred"] = swapped
+    t0 = time.perf_counter()
+    islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
+    t["split"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    packing, offsets, mirrored = _packed(islands, cfg)
+    t["pack"] = time.perf_counter() - t0
+    mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)
     total = float(area.sum())
-    stats = {
-        "prepare": prep.stats,
-        "assignment": {**asg.stats, "far_area_fraction": float(area[asg.far].sum() / total),
-                       "fallback_components": int((~reached).sum()),
-                       "fallback_faces": int(fallback.sum()),
-                       "fallback_area_fraction": float(area[fallback].sum() / total)},
-        "regions": clean_stats,
-        "islands": len(islands),
-        "flatten": fstats,
-        "relax": relax_stats,
-        "slits": slit_stats,
-        "splits": split_stats,
-        "pack": {"utilization": packing.utilization, "packer": packing.packer, "scale": packing.scale,
-                 "texels_per_unit": packing.texels_per_unit, "resolution": packing.resolution,
-                 "padding": packing.padding},
-        **out_stats,
-        "islands_reflected": mirrored,
-        "config": asdict(cfg),
-        "timings": t,
-    }
+    assignment = {**asg.stats, "far_area_fraction": float(area[asg.far].sum() / total),
+                  "fallback_components": int((~reached).sum()), "fallback_faces": int(fallback.sum()),
+                  "fallback_area_fraction": float(area[fallback].sum() / total)}
+    stats = {"prepare": prep.stats, "assignment": assignment, "regions": clean_stats, "islands": len(islands),
+             "flatten": fstats, "relax": relax_stats, "slits": slit_stats, "splits": split_stats,
+             "pack": _pack_stats(packing), **out_stats, "islands_reflected": mirrored, "config": asdict(cfg),
+             "timings": t}
     return Unwrap(mesh, face_island, stats)
