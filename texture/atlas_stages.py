@@ -11,7 +11,7 @@ import numpy as np
 
 from . import policy as P
 from .atlas_config import AtlasConfig
-from .atlas_stats import RelaxStats
+from .atlas_stats import OrientStats, RelaxStats
 from .layout_search import LayoutChoice, search_layouts
 from .layouts import Prepared, island_count, prepare, unmirrored
 from .orient import Reference, orient_pieces
@@ -21,11 +21,10 @@ from .trim import Piece
 
 @dataclass(frozen=True)
 class Oriented:
-    """The orientation stage: the pieces, prepared, and :func:`orient_pieces`'s stats (plus
-    ``orient_fragment_islands``: whether fragment islands were kept)."""
+    """The orientation stage: the pieces, prepared, and its stats (None: not oriented)."""
 
     layout: list[Prepared]
-    stats: dict
+    stats: OrientStats | None
 
 
 def orient_stage(pieces: list[Piece], reference: Reference | None, cfg: AtlasConfig) -> Oriented:
@@ -38,15 +37,14 @@ def orient_stage(pieces: list[Piece], reference: Reference | None, cfg: AtlasCon
     ``cfg.orient`` off) the pieces pass unchanged.
     """
     if reference is None or not cfg.orient:
-        return Oriented([prepare(p) for p in pieces], {})
+        return Oriented([prepare(p) for p in pieces], None)
     total = sum(float(p.area().sum()) for p in pieces)
     min_area = cfg.trim.min_island_fraction * total
     if cfg.orient_fragment_island <= 0:
         out, stats = orient_pieces(pieces, reference, min_area)
-        return Oriented([prepare(p) for p in out], stats)
+        return Oriented([prepare(p) for p in out], OrientStats(**stats))
     out, stats = orient_pieces(pieces, reference, min_area, min_fragment_island=cfg.orient_fragment_island * total)
     layout = [prepare(p) for p in out]
-    stats["orient_fragment_islands"] = True
     # orientation splits and reverses islands but never merges them: when the pieces already
     # have more islands than the budget, orienting again without fragment islands cannot
     # get within it (and would cost a second orientation)
@@ -54,8 +52,8 @@ def orient_stage(pieces: list[Piece], reference: Reference | None, cfg: AtlasCon
         plain, plain_stats = orient_pieces(pieces, reference, min_area)
         plain_layout = [prepare(p) for p in plain]
         if island_count(plain_layout) <= cfg.max_islands:
-            return Oriented(plain_layout, {**plain_stats, "orient_fragment_islands": False})
-    return Oriented(layout, stats)
+            return Oriented(plain_layout, OrientStats(**plain_stats, orient_fragment_islands=False))
+    return Oriented(layout, OrientStats(**stats, orient_fragment_islands=True))
 
 
 @dataclass(frozen=True)

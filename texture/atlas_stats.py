@@ -6,6 +6,7 @@ left out, not written as null.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,10 +16,30 @@ from mnacore.pointmetrics import POINTS, chamfer_fscore
 
 from .geometry import sample_surface
 from .layout_search import LayoutStats
+from .trim import TrimStats
 
 
 def _present(pairs) -> dict:
     return {k: v for k, v in pairs if v is not None}
+
+
+@dataclass(frozen=True)
+class OrientStats:
+    """The orientation stage (:func:`texture.orient.orient_pieces`'s measurements, percent of the
+    area), and whether fragment islands were kept (None: no fragment islands allowed)."""
+
+    folded_percent_before_orient: float
+    reoriented_percent: float
+    folded_percent: float
+    orient_dropped_percent: float
+    orient_fragment_island_count: int
+    orient_fragment_islands: bool | None = None
+
+    def to_json(self) -> dict:
+        out = dataclasses.asdict(self)
+        if self.orient_fragment_islands is None:
+            del out["orient_fragment_islands"]
+        return out
 
 
 @dataclass
@@ -103,16 +124,15 @@ def coverage_stats(charts: ChartGrids, xyz: np.ndarray, faces: np.ndarray, refer
 class AtlasStats:
     """Everything :func:`texture.atlas.build_atlas` measured, stage by stage.
 
-    ``trim`` and ``orient`` are the mappings :func:`texture.trim.trim_charts` and
-    :func:`texture.orient.orient_pieces` report (percent of the area, counts).
+    ``orient`` is None when the pieces were not oriented (no reference surface).
     """
 
     charts: int
     charts_used: int
     islands: int
     faces: int
-    trim: dict
-    orient: dict
+    trim: TrimStats
+    orient: OrientStats | None
     relax: RelaxStats
     layout: LayoutStats
     coverage: CoverageStats
@@ -127,7 +147,7 @@ class AtlasStats:
 
     @property
     def doubly_covered_percent(self) -> float:
-        return self.trim["doubly_covered_percent"]
+        return self.trim.doubly_covered_percent
 
     @property
     def fscore_drop(self) -> float:
@@ -138,7 +158,7 @@ class AtlasStats:
     def to_json(self, timings: bool = True) -> dict:
         """The ``atlas`` section of ``atlas.json`` (with ``timings`` unless told otherwise)."""
         out = {"charts": self.charts, "charts_used": self.charts_used, "islands": self.islands, "faces": self.faces,
-               **self.trim, **self.orient, **self.relax.to_json(), **self.layout.to_json(),
+               **self.trim.to_json(), **(self.orient.to_json() if self.orient else {}), **self.relax.to_json(), **self.layout.to_json(),
                **self.coverage.to_json(), "utilization": self.utilization, "packer": self.packer,
                "uv_scale": self.uv_scale, "texels_per_chart_unit": self.texels_per_chart_unit,
                "resolution": self.resolution, "padding": self.padding}

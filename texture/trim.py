@@ -23,7 +23,9 @@ the F-score threshold).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -109,45 +111,50 @@ def covered_by(points: np.ndarray, projector: MeshProjector, tol: float,
     return cov
 
 
-def projector(p: Piece, cache: dict | None = None) -> MeshProjector | None:
-    """:class:`MeshProjector` of ``p`` (None if it has no faces); ``cache`` (keyed by the piece
-    object) keeps one per piece across the trim's passes and checks."""
-    if cache is not None and id(p) in cache:
-        return cache[id(p)][1]
-    proj = MeshProjector(p.xyz, p.faces) if len(p.faces) else None
-    if cache is not None:
-        cache[id(p)] = (p, proj)  # holding p keeps its id from being reused
-    return proj
+class Surface:
+    """A piece and its :class:`MeshProjector` (None if it has no faces), built on first use and
+    then shared by the trim's passes and checks; and the projections of its vertices onto
+    other surfaces, computed once (the passes change only the bans, not the projections)."""
+
+    def __init__(self, piece: Piece):
+        self.piece = piece
+        self._onto: dict[tuple[int, float], object] = {}
+
+    @cached_property
+    def projector(self) -> MeshProjector | None:
+        p = self.piece
+        return MeshProjector(p.xyz, p.faces) if len(p.faces) else None
+
+    def projected_onto(self, j: int, other: Surface, tol: float):
+        """This surface's vertices projected onto ``other`` (surface ``j`` of the same trim)."""
+        if (j, tol) not in self._onto:
+            self._onto[(j, tol)] = other.projector.project(self.piece.xyz, max_distance=tol)
+        return self._onto[(j, tol)]
 
 
-def ownership_fields(pieces: list[Piece], cover_tol: float, banned: list[np.ndarray] | None = None,
-                     cache: dict | None = None) -> list[np.ndarray]:
+def ownership_fields(surfaces: list[Surface], cover_tol: float,
+                     banned: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Per piece, ``o_k`` at its vertices (see module docstring); finite.
 
     ``banned[k]`` (V_k,) marks vertices of piece ``k`` that must lose: ``o_k < 0`` there and
     piece ``k`` does not count as covering them for the other pieces.
     """
+    pieces = [s.piece for s in surfaces]
     banned = banned or [np.zeros(len(p.xyz), bool) for p in pieces]
     trees = []
     for p in pieces:
         b = border_points(p)
         trees.append(cKDTree(b) if len(b) else None)
-    projectors = [projector(p, cache) for p in pieces]
+    projectors = [s.projector for s in surfaces]
     fields = []
     far = 10.0  # > unit-ball diameter: "no border"
     for k, p in enumerate(pieces):
         s_k = trees[k].query(p.xyz)[0] if trees[k] is not None else np.full(len(p.xyz), far)
         best_other = np.zeros(len(p.xyz))
-        for j, q in enumerate(pieces):
+        for j in range(len(pieces)):
             if j == k or projectors[j] is None:
                 continue
-            # the projection does not change between the passes (only the bans do): kept in the cache
-            key = ("projection", id(p), id(q), cover_tol)
-            proj = cache.get(key) if cache is not None else None
-            if proj is None:
-                proj = projectors[j].project(p.xyz, max_distance=cover_tol)
-                if cache is not None:
-                    cache[key] = proj
+            proj = surfaces[k].projected_onto(j, surfaces[j], cover_tol)
             cov = covered_by(p.xyz, projectors[j], cover_tol, banned[j], proj)
             if not cov.any():
                 continue
@@ -191,20 +198,38 @@ def _without_slivers(piece: Piece) -> Piece:
     return _drop_faces(piece, (uv_area > 1e-12 * max(float(np.median(uv_area)), 1e-300)) & (area > 0))
 
 
+@dataclass(frozen=True)
+class TrimStats:
+    """What the trim did: areas (unit-ball frame), doubly covered area before and after (percent
+    of the area), islands handed over to a covering chart or dropped, area dropped uncovered
+    (percent)."""
+
+    domain_area: float
+    trimmed_area: float
+    doubly_covered_percent_before: float
+    doubly_covered_percent: float
+    handed_over_islands: int
+    dropped_islands: int
+    dropped_uncovered_percent: float
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
 class TrimResult(NamedTuple):
     pieces: list[Piece]  # one per chart (possibly empty), trimmed, unit-ball frame
     domain: list[Piece]  # the charts cut at the domain iso-line only
-    stats: dict
+    stats: TrimStats
 
 
-def doubly_covered_percent(pieces: list[Piece], tol: float, samples: int, seed: int,
-                           cache: dict | None = None) -> float:
+def doubly_covered_percent(surfaces: list[Surface], tol: float, samples: int, seed: int) -> float:
     """Percent of the total area that another chart also covers (sampled, seeded)."""
+    pieces = [s.piece for s in surfaces]
     areas = [float(p.area().sum()) for p in pieces]
     total = sum(areas)
     if total <= 0 or len(pieces) < 2:
         return 0.0
-    projectors = [projector(p, cache) for p in pieces]
+    projectors = [s.projector for s in surfaces]
     covered_area = 0.0
     for k, p in enumerate(pieces):
         n = int(round(samples * areas[k] / total))
@@ -219,9 +244,9 @@ def doubly_covered_percent(pieces: list[Piece], tol: float, samples: int, seed: 
     return 100.0 * covered_area / total
 
 
-def _ban_small_islands(domain, trimmed, sources, banned, min_area, tol, cache: dict | None = None) -> int:
+def _ban_small_islands(domain: list[Surface], trimmed, sources, banned, min_area, tol) -> int:
     """Ban (in ``banned``) the source vertices of small islands that another chart covers."""
-    others = [(projector(p, cache), banned[j]) if len(p.faces) else None for j, p in enumerate(domain)]
+    others = [(s.projector, banned[j]) if len(s.piece.faces) else None for j, s in enumerate(domain)]
     count = 0
     for k, (q, src) in enumerate(zip(trimmed, sources)):
         island, small = _small_islands(q, min_area)
@@ -235,38 +260,35 @@ def _ban_small_islands(domain, trimmed, sources, banned, min_area, tol, cache: d
     return count
 
 
-def trim_charts(charts: ChartGrids, config: TrimConfig | None = None, passes: int = 3) -> TrimResult:
-    """Domain cut, ownership cut and cleanup (module docstring); stats in percent of area.
-
-    Small islands that another chart covers are handed to that chart (their vertices are
-    banned from their own chart and the ownership is recomputed, up to ``passes`` times);
-    dropping them instead would leave holes where the other chart had given way.
-    """
-    cfg = config or TrimConfig()
-    domain = [_without_slivers(p) for p in domain_pieces(charts)]
-    total = sum(float(p.area().sum()) for p in domain)
-    min_area = cfg.min_island_fraction * total
+def _owned(surfaces: list[Surface], cfg: TrimConfig, min_area: float, passes: int) -> tuple[list[Piece], int]:
+    """(every domain piece cut at its ownership iso-line, islands handed over): small islands
+    another chart covers are banned and the ownership recomputed, up to ``passes`` times."""
+    domain = [s.piece for s in surfaces]
     banned = [np.zeros(len(p.xyz), bool) for p in domain]
-    cache: dict = {}  # one MeshProjector per piece for all passes and checks
     handed = 0
     for it in range(passes):
-        fields = ownership_fields(domain, cfg.cover_tol, banned, cache)
+        fields = ownership_fields(surfaces, cover_tol=cfg.cover_tol, banned=banned)
         clipped = [_clip_piece(p, f) if len(p.faces) else (p, np.arange(len(p.xyz))) for p, f in zip(domain, fields)]
         trimmed = [c[0] for c in clipped]
         if it == passes - 1:
             break
-        n = _ban_small_islands(domain, trimmed, [c[1] for c in clipped], banned, min_area, cfg.cover_tol, cache)
+        n = _ban_small_islands(surfaces, trimmed, [c[1] for c in clipped], banned, min_area, cfg.cover_tol)
         handed += n
         if n == 0:
             break
-    # small islands left: covered elsewhere -> slivers, drop; alone -> tiny holes, drop the
-    # smallest while their total stays under max_dropped_fraction of the area
-    finals = [_without_slivers(p) for p in trimmed]
-    projs = [(projector(p, cache), None) if len(p.faces) else None for p in finals]
-    keep = [np.ones(len(q.faces), bool) for q in finals]
+    return trimmed, handed
+
+
+def _cleaned(finals: list[Surface], cfg: TrimConfig, min_area: float, total: float) -> tuple[list[Surface], int, float]:
+    """(surfaces without their small islands, islands dropped, area dropped alone): small islands
+    covered elsewhere are slivers, dropped; alone they are tiny holes: the smallest are dropped
+    while their total stays under ``max_dropped_fraction`` of the area."""
+    projs = [(s.projector, None) if len(s.piece.faces) else None for s in finals]
+    keep = [np.ones(len(s.piece.faces), bool) for s in finals]
     alone = []  # (area, chart, faces)
     dropped, dropped_area = 0, 0.0
-    for k, q in enumerate(finals):
+    for k, s in enumerate(finals):
+        q = s.piece
         island, small = _small_islands(q, min_area)
         area = q.area()
         for i in np.flatnonzero(small):
@@ -283,15 +305,32 @@ def trim_charts(charts: ChartGrids, config: TrimConfig | None = None, passes: in
         keep[k][faces] = False
         dropped += 1
         dropped_area += a
-    final = [_drop_faces(q, m) if not m.all() else q for q, m in zip(finals, keep)]
-    stats = {
-        "domain_area": total,
-        "trimmed_area": sum(float(p.area().sum()) for p in final),
-        "doubly_covered_percent_before": doubly_covered_percent(domain, cfg.cover_tol, cfg.check_samples, cfg.seed,
-                                                                cache),
-        "doubly_covered_percent": doubly_covered_percent(final, cfg.cover_tol, cfg.check_samples, cfg.seed, cache),
-        "handed_over_islands": handed,
-        "dropped_islands": dropped,
-        "dropped_uncovered_percent": 100.0 * dropped_area / total,
-    }
+    out = [Surface(_drop_faces(s.piece, m)) if not m.all() else s for s, m in zip(finals, keep)]
+    return out, dropped, dropped_area
+
+
+def trim_charts(charts: ChartGrids, config: TrimConfig | None = None, passes: int = 3) -> TrimResult:
+    """Domain cut, ownership cut and cleanup (module docstring); stats in percent of area.
+
+    Small islands that another chart covers are handed to that chart (their vertices are
+    banned from their own chart and the ownership is recomputed, up to ``passes`` times);
+    dropping them instead would leave holes where the other chart had given way.
+    """
+    cfg = config or TrimConfig()
+    domain = [_without_slivers(p) for p in domain_pieces(charts)]
+    total = sum(float(p.area().sum()) for p in domain)
+    min_area = cfg.min_island_fraction * total
+    surfaces = [Surface(p) for p in domain]  # one MeshProjector per piece for all passes and checks
+    trimmed, handed = _owned(surfaces, cfg, min_area, passes)
+    finals, dropped, dropped_area = _cleaned([Surface(_without_slivers(p)) for p in trimmed], cfg, min_area, total)
+    final = [s.piece for s in finals]
+    stats = TrimStats(
+        domain_area=total,
+        trimmed_area=sum(float(p.area().sum()) for p in final),
+        doubly_covered_percent_before=doubly_covered_percent(surfaces, cfg.cover_tol, cfg.check_samples, cfg.seed),
+        doubly_covered_percent=doubly_covered_percent(finals, cfg.cover_tol, cfg.check_samples, cfg.seed),
+        handed_over_islands=handed,
+        dropped_islands=dropped,
+        dropped_uncovered_percent=100.0 * dropped_area / total,
+    )
     return TrimResult(final, domain, stats)

@@ -70,8 +70,8 @@ def test_trim_two_caps_gives_one_layer(sphere_run):
     res = trim_charts(charts)
     total = sum(p.area().sum() for p in res.pieces)
     assert total == pytest.approx(4 * np.pi, rel=0.01)  # every part of the sphere once
-    assert res.stats["doubly_covered_percent_before"] > 20  # the 75..105 degree band
-    assert res.stats["doubly_covered_percent"] <= 1.0
+    assert res.stats.doubly_covered_percent_before > 20  # the 75..105 degree band
+    assert res.stats.doubly_covered_percent <= 1.0
     for p in res.pieces:  # by symmetry the border is the equator
         assert p.area().sum() == pytest.approx(2 * np.pi, rel=0.02)
         assert np.abs(border_points(p)[:, 2]).max() < 0.05
