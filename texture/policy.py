@@ -64,6 +64,14 @@ class SearchPolicy:
     """Scale steps (``FINE_SHRINK`` each) tried for a packing with no island mirrored before
     the search without xatlas's 90-degree turns (which never mirror)."""
 
+    def __post_init__(self):
+        for name, least in (("max_attempts", 1), ("mirror_tries", 1), ("unmirror_steps", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"SearchPolicy.{name} must be an integer >= {least}, got {value!r}")
+        if not self.prune_margin >= 0:
+            raise ValueError(f"SearchPolicy.prune_margin must be >= 0, got {self.prune_margin!r}")
+
 
 DEFAULT_POLICY = SearchPolicy()
 

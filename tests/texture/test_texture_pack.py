@@ -173,6 +173,13 @@ def test_any_policy_packs_validly_and_deterministically(name, islands):
     assert again.uv.tobytes() == pk.uv.tobytes() and again.utilization == pk.utilization
 
 
+@pytest.mark.parametrize("field, value", [("mirror_tries", 0), ("max_attempts", 0), ("unmirror_steps", -1),
+                                          ("prune_margin", -0.1), ("mirror_tries", True)])
+def test_policy_refuses_settings_that_would_void_the_guarantees(field, value):
+    with pytest.raises(ValueError, match=f"SearchPolicy.{field}"):
+        SearchPolicy(**{field: value})
+
+
 def test_default_policy_packs_at_least_as_tight_as_the_shelf():
     uv, faces, island = _long_thin_islands()
     best = pack_islands(uv, faces, island, resolution=128, padding=2)
