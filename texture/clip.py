@@ -24,6 +24,7 @@ over) is not made. The rule is symmetric in the sign of ``field``, so clipping w
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -88,6 +89,79 @@ def _snap(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane) -> tup
     return moved, field
 
 
+@dataclass(frozen=True)
+class _Cases:
+    """Faces by how the iso-line crosses them, each partial face rotated so that, for 1 inside,
+    corner 0 is inside (and, with one on-line corner, corner 1 is outside); for 2 inside,
+    corner 2 is outside (rotation keeps the orientation).
+
+    Attributes:
+        full, one, two, mixed: (F,) masks: no corner outside (and one inside); 1 inside 2
+            outside; 2 inside 1 outside; inside, on-line, outside (one triangle).
+        rot: (F, 3) the faces rotated as above.
+        m_out1: (mixed faces,) whether corner 1 (else corner 2) of a mixed face is outside.
+    """
+
+    full: np.ndarray
+    one: np.ndarray
+    two: np.ndarray
+    mixed: np.ndarray
+    rot: np.ndarray
+    m_out1: np.ndarray
+
+
+def _cases(faces: np.ndarray, field: np.ndarray) -> _Cases:
+    fin = (field > 0)[faces]
+    fout = (field < 0)[faces]
+    n_in, n_out = fin.sum(1), fout.sum(1)
+    shift = np.zeros(len(faces), np.int64)
+    mixed = (n_in == 1) & (n_out == 1)
+    one, two = (n_in == 1) & (n_out == 2), (n_in == 2) & (n_out == 1)
+    shift[one] = np.argmax(fin[one], axis=1)
+    shift[two] = (np.argmin(~fout[two], axis=1) + 1) % 3
+    shift[mixed] = np.argmax(fin[mixed], axis=1)
+    idx = (np.arange(3)[None, :] + shift[:, None]) % 3
+    rot = np.take_along_axis(faces, idx, axis=1)
+    m_out1 = field[rot[mixed][:, 1]] < 0
+    return _Cases((n_in > 0) & (n_out == 0), one, two, mixed, rot, m_out1)
+
+
+def _cut_points(attrs: np.ndarray, field: np.ndarray, c: _Cases) -> tuple[np.ndarray, np.ndarray]:
+    """(cut point attributes, id of the cut point of every cut edge in :func:`_split_faces`'s
+    order): one point per cut edge (inside vertex, outside vertex), linear in ``field``."""
+    V = len(attrs)
+    rm, r1, r2 = c.rot[c.mixed], c.rot[c.one], c.rot[c.two]
+    e_mixed = np.where(c.m_out1[:, None], rm[:, [0, 1]], rm[:, [0, 2]])
+    e1 = np.concatenate([r1[:, [0, 1]], r1[:, [0, 2]], r2[:, [1, 2]], r2[:, [0, 2]], e_mixed])
+    key = np.minimum(e1[:, 0], e1[:, 1]) * V + np.maximum(e1[:, 0], e1[:, 1])
+    ukey, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    a, b = e1[first, 0], e1[first, 1]
+    t = field[a] / (field[a] - field[b])
+    return (1 - t)[:, None] * attrs[a] + t[:, None] * attrs[b], V + inv.reshape(-1)
+
+
+def _split_faces(faces: np.ndarray, c: _Cases, cut_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(kept and new faces, source face of each)."""
+    n1, n2 = int(c.one.sum()), int(c.two.sum())
+    c_ab, c_ac = cut_id[:n1], cut_id[n1:2 * n1]
+    c_bc, c_ac2 = cut_id[2 * n1:2 * n1 + n2], cut_id[2 * n1 + n2:2 * n1 + 2 * n2]
+    c_m = cut_id[2 * n1 + 2 * n2:]
+    rm, r1, r2 = c.rot[c.mixed], c.rot[c.one], c.rot[c.two]
+    # inside p, then (cut, on-line z) or (z, cut) in the face's own corner order
+    tri_mixed = np.where(c.m_out1[:, None], np.stack([rm[:, 0], c_m, rm[:, 2]], 1),
+                         np.stack([rm[:, 0], rm[:, 1], c_m], 1))
+    new_faces = np.concatenate([
+        faces[c.full],
+        np.stack([r1[:, 0], c_ab, c_ac], 1),
+        np.stack([r2[:, 0], r2[:, 1], c_bc], 1),
+        np.stack([r2[:, 0], c_bc, c_ac2], 1),
+        tri_mixed.reshape(-1, 3),
+    ])
+    src = np.concatenate([np.flatnonzero(c.full), np.flatnonzero(c.one), np.flatnonzero(c.two),
+                          np.flatnonzero(c.two), np.flatnonzero(c.mixed)])
+    return new_faces, src
+
+
 def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane: tuple[int, int] | None = None) -> Clipped:
     """Keep ``{field > 0}`` of the mesh ``(attrs (V, D), faces (F, 3))``; see module docstring.
 
@@ -103,53 +177,10 @@ def clip_mesh(attrs: np.ndarray, faces: np.ndarray, field: np.ndarray, plane: tu
     field[np.abs(field) <= SNAP_REL * scale] = 0.0
     if plane is not None and len(faces):
         attrs, field = _snap(attrs, faces, field, plane)
-    inside = field > 0
-    fin = inside[faces]
-    fout = (field < 0)[faces]
-    n_in, n_out = fin.sum(1), fout.sum(1)
-    # rotate each partial face so that, for 1 inside, corner 0 is inside (and, with one
-    # on-line corner, corner 1 is outside); for 2 inside, corner 2 is outside (rotation
-    # keeps the orientation)
-    shift = np.zeros(len(faces), np.int64)
-    mixed = (n_in == 1) & (n_out == 1)  # inside, on-line, outside: one triangle
-    one, two = (n_in == 1) & (n_out == 2), (n_in == 2) & (n_out == 1)
-    shift[one] = np.argmax(fin[one], axis=1)
-    shift[two] = (np.argmin(~fout[two], axis=1) + 1) % 3
-    shift[mixed] = np.argmax(fin[mixed], axis=1)
-    idx = (np.arange(3)[None, :] + shift[:, None]) % 3
-    rot = np.take_along_axis(faces, idx, axis=1)
-    rm = rot[mixed]
-    m_out1 = field[rm[:, 1]] < 0  # corner 1 outside (else corner 2 is)
-
+    cases = _cases(faces, field)
+    cut_attrs, cut_id = _cut_points(attrs, field, cases)
+    new_faces, src = _split_faces(faces, cases, cut_id)
     V = len(attrs)
-    # cut edges: (inside vertex, outside vertex)
-    e_mixed = np.where(m_out1[:, None], rm[:, [0, 1]], rm[:, [0, 2]])
-    e1 = np.concatenate([rot[one][:, [0, 1]], rot[one][:, [0, 2]],
-                         rot[two][:, [1, 2]], rot[two][:, [0, 2]], e_mixed])
-    key = np.minimum(e1[:, 0], e1[:, 1]) * V + np.maximum(e1[:, 0], e1[:, 1])
-    ukey, first, inv = np.unique(key, return_index=True, return_inverse=True)
-    a, b = e1[first, 0], e1[first, 1]
-    t = field[a] / (field[a] - field[b])
-    cut_attrs = (1 - t)[:, None] * attrs[a] + t[:, None] * attrs[b]
-    cut_id = V + inv.reshape(-1)
-    n1, n2 = int(one.sum()), int(two.sum())
-    c_ab, c_ac = cut_id[:n1], cut_id[n1:2 * n1]
-    c_bc, c_ac2 = cut_id[2 * n1:2 * n1 + n2], cut_id[2 * n1 + n2:2 * n1 + 2 * n2]
-    c_m = cut_id[2 * n1 + 2 * n2:]
-    r1, r2 = rot[one], rot[two]
-    full = (n_in > 0) & (n_out == 0)
-    # inside p, then (cut, on-line z) or (z, cut) in the face's own corner order
-    tri_mixed = np.where(m_out1[:, None], np.stack([rm[:, 0], c_m, rm[:, 2]], 1),
-                         np.stack([rm[:, 0], rm[:, 1], c_m], 1))
-    new_faces = np.concatenate([
-        faces[full],
-        np.stack([r1[:, 0], c_ab, c_ac], 1),
-        np.stack([r2[:, 0], r2[:, 1], c_bc], 1),
-        np.stack([r2[:, 0], c_bc, c_ac2], 1),
-        tri_mixed.reshape(-1, 3),
-    ])
-    src = np.concatenate([np.flatnonzero(full), np.flatnonzero(one), np.flatnonzero(two), np.flatnonzero(two),
-                          np.flatnonzero(mixed)])
     all_attrs = np.concatenate([attrs, cut_attrs])
     all_field = np.concatenate([field, np.zeros(len(cut_attrs))])
     used = np.zeros(len(all_attrs), bool)
