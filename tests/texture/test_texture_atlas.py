@@ -322,6 +322,40 @@ def test_relax_choice_follows_the_recorded_utilisations(sphere_run, target):
         assert d_got == pytest.approx(d_raw, rel=1e-6)
 
 
+def _flat_piece(width, height, G=9):
+    from texture.trim import Piece
+
+    u, v = np.meshgrid(np.linspace(0.0, width, G), np.linspace(0.0, height, G), indexing="xy")
+    uv = np.column_stack([u.ravel(), v.ravel()])
+    return Piece(0, np.column_stack([uv, np.zeros(len(uv))]), uv, grid_faces(G))
+
+
+@pytest.mark.parametrize("target", [0.02, 0.5, 0.99])
+def test_layout_stage_drops_the_relaxed_uvs_only_for_the_target(target):
+    """The layout stage on real packings: a 16:1 strip (standing in for relaxed islands that
+    pack loosely) against a square (the charts' own UVs, packing tightly). Below both
+    utilisations the relaxed layout is kept and the other never laid out; between them the
+    square's layout is packed instead; above both the relaxed one is kept."""
+    from texture.atlas_stages import choose_layout
+    from texture.atlas_stats import RelaxStats
+    from texture.layouts import prepare
+
+    strip, square = [prepare(_flat_piece(8.0, 0.5))], [prepare(_flat_piece(1.0, 1.0))]
+    stats = RelaxStats()
+    cfg = AtlasConfig(resolution=256, padding=2, max_islands=0, target_utilization=target)
+    choice = choose_layout(strip, square, cfg, stats)
+    if target == 0.02:
+        assert stats.kept is True and not stats.compared_unrelaxed
+        assert choice.plan.utilization >= target
+    else:
+        assert stats.compared_unrelaxed and stats.coarse_relaxed < 0.5 <= stats.coarse_unrelaxed < 0.99
+        assert stats.kept is (target == 0.99)
+    want = square if stats.kept is False else strip
+    np.testing.assert_array_equal(choice.merged.uv, want[0].piece.uv)
+    if stats.compared_unrelaxed:  # the plan packed is the one recorded for the kept layout
+        assert choice.plan.utilization == (stats.coarse_unrelaxed if stats.kept is False else stats.coarse_relaxed)
+
+
 @pytest.mark.parametrize("target, order", [(0.6, [1, 2]), (0.72, [1, 2]), (0.75, [1]), (0.8, [])])
 def test_off_centre_order_prunes_far_guesses_and_ranks_the_rest(target, order):
     """Guesses 0.5, 0.7, 0.66, 0.2: those more than the margin (0.07) under the target are never
