@@ -22,6 +22,7 @@ from mnacore.uvmesh import UVMesh, load_uv_mesh
 from .atlas import AtlasConfig, build_atlas
 from .atlas_stats import AtlasStats
 from .export import export_textured
+from .export_config import TEXTURES, ExportConfig
 from .harness import measure
 from .orient import Reference
 from .relax import RelaxConfig
@@ -37,8 +38,6 @@ from .textures import (
     uv_length_scale,
 )
 from .xatlas_uv import XatlasOptions, check_mesh, unwrap
-
-TEXTURES = ("checker", "uvgrid", "bake")
 
 
 def load_input(run: str | os.PathLike):
@@ -145,8 +144,8 @@ class ExportReport:
     """What :func:`export_run` did: ``atlas.json``'s content, typed.
 
     Attributes:
-        config: the resolved export configuration (every option of the atlas stages), so the
-            export can be reproduced from ``atlas.json`` alone (with the run's charts.npz).
+        config: the resolved :class:`ExportConfig` (every option of every stage), so
+            ``mna export RUN --config atlas.json`` reproduces the export.
         checker_square_size: the checker square drawn (unit-ball frame).
         atlas: the atlas stages' measurements.
         uv_metrics: the harness summary of the exported mesh.
@@ -173,32 +172,25 @@ class ExportReport:
                 "timings": self.timings, "files": self.files}
 
 
-def _check_export_args(run: Path, texture: str, padding, relax) -> None:
-    if isinstance(padding, bool) or int(padding) != padding or padding < 0:
-        raise InputError(f"--padding must be a non-negative integer, got {padding!r}")
-    if isinstance(relax, bool) or not isinstance(relax, (int, np.integer)) or relax < 0:
-        raise InputError(f"--relax must be a non-negative integer (SLIM iterations), got {relax!r}")
-    if texture not in TEXTURES:
-        raise InputError(f"unknown texture {texture!r}; choose from {', '.join(TEXTURES)}")
-    if not run.is_dir():
-        raise InputError(f"run folder not found: {run}")
-
-
 def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str = 2048, padding: int = 8,
                square_size: float | None = None, max_islands: int = AtlasConfig.max_islands,
-               relax: int = RelaxConfig.iterations) -> ExportReport:
+               relax: int = RelaxConfig.iterations, config: ExportConfig | None = None) -> ExportReport:
     """Charts of ``RUN/charts.npz`` -> ``RUN/mesh.obj``, ``mesh.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``atlas.json``.
 
-    Returns what ``atlas.json`` holds (:class:`ExportReport`): atlas stats (trim, coverage,
-    packing), harness summary, timings (seconds), written paths.
+    The options are ``mna export``'s, or a whole :class:`ExportConfig` (``config``, e.g. the
+    one an earlier ``atlas.json`` saved), validated once here. Returns what ``atlas.json``
+    holds (:class:`ExportReport`): atlas stats (trim, coverage, packing), harness summary,
+    timings (seconds), written paths, and the config.
     """
     run = Path(run)
-    size = check_size(size)
-    _check_export_args(run, texture, padding, relax)
+    cfg = (config.validate() if config is not None else
+           ExportConfig.from_options(texture, size, padding, square_size, max_islands, relax))
+    if not run.is_dir():
+        raise InputError(f"run folder not found: {run}")
     charts = load_charts(run / "charts.npz")
     t0 = time.perf_counter()
     mesh_in, points_in = load_input(run)
-    if texture == "bake":
+    if cfg.texture == "bake":
         if mesh_in is None:
             raise InputError("--texture bake needs the run's input mesh (RUN/config.yaml 'input'), "
                              "which is not a readable mesh")
@@ -206,18 +198,14 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     norm = charts.normalization
     ref = reference_points(mesh_in, points_in, norm)
     surface = Reference.from_trimesh(mesh_in, norm) if mesh_in is not None else None
-    if int(max_islands) < 0:
-        raise InputError(f"--max-islands must be 0 (never cut) or a positive integer, got {max_islands}")
-    cfg = AtlasConfig(resolution=size, padding=int(padding), max_islands=int(max_islands),
-                      relax=RelaxConfig(iterations=int(relax)))
-    atlas = build_atlas(charts, cfg, ref, surface)
+    atlas = build_atlas(charts, cfg.atlas, ref, surface)
     t1 = time.perf_counter()
     source = None
-    if texture == "bake":
+    if cfg.texture == "bake":
         source = mesh_in.copy()
         source.vertices = norm.apply(mesh_in.vertices)
-    square = square_size_for(atlas.mesh_unit, size, square_size)  # drawn, and recorded in atlas.json
-    image = make_texture(texture, atlas.mesh_unit, size, int(padding), source, square)
+    square = square_size_for(atlas.mesh_unit, cfg.size, cfg.square_size)  # drawn, and recorded in atlas.json
+    image = make_texture(cfg.texture, atlas.mesh_unit, cfg.size, cfg.padding, source, square)
     t2 = time.perf_counter()
     paths = export_textured(run, atlas.mesh, image)
     t3 = time.perf_counter()
@@ -226,10 +214,8 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
     timings = {"atlas": t1 - t0, **{f"atlas_{k}": v for k, v in atlas.report.timings.items()},
                "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
     timings["export_total"] = t3 - t0
-    config = {"texture": texture, "size": size, "padding": int(padding), "square_size": square_size,
-              "atlas": dataclasses.asdict(cfg)}
-    report = ExportReport(texture, size, int(padding), int(relax), config, square, atlas.report,
-                          metrics.summary, timings, paths)
+    report = ExportReport(cfg.texture, cfg.size, cfg.padding, cfg.atlas.relax.iterations, dataclasses.asdict(cfg),
+                          square, atlas.report, metrics.summary, timings, paths)
     write_json(run / "atlas.json", report.to_json())
     return report
 

@@ -27,6 +27,9 @@ def register(subparsers) -> None:
     e.add_argument("--relax", default="8", metavar="N",
                    help="re-flatten every island toward an isometry with at most N SLIM iterations before packing "
                         "(default 8; 0 = keep the charts' own UVs)")
+    e.add_argument("--config", default=None, metavar="FILE",
+                   help="repeat an export: every option from an atlas.json (its 'config') or a JSON/YAML file "
+                        "of the same keys; the options above are then not allowed")
     e.set_defaults(func=run_export)
 
     u = subparsers.add_parser("uv", help="UV-map any mesh with xatlas and write a textured OBJ/GLB + metrics",
@@ -87,10 +90,22 @@ def _positive_float(value: float | None, name: str) -> float | None:
     return value
 
 
+#: `mna export` options that --config replaces (name, default)
+_EXPORT_OPTIONS = (("texture", "checker"), ("size", "2048"), ("padding", "8"), ("square_size", None),
+                   ("max_islands", 6), ("relax", "8"))
+
+
 def run_export(args: argparse.Namespace) -> int:
     from texture.pipeline import export_run
     from texture.textures import check_size
 
+    if args.config is not None:
+        from texture.export_config import load_export_config
+
+        given = [f"--{n.replace('_', '-')}" for n, d in _EXPORT_OPTIONS if getattr(args, n) != d]
+        if given:
+            raise MnaError(f"--config holds every export option; drop {', '.join(given)}")
+        return _report_export(args.run, export_run(args.run, config=load_export_config(args.config)))
     square_size = _positive_float(args.square_size, "--square-size")
     if args.max_islands < 0:
         raise MnaError(f"--max-islands must be >= 0, got {args.max_islands}")
@@ -99,11 +114,15 @@ def run_export(args: argparse.Namespace) -> int:
     relax = _int_arg(args.relax, "--relax", 0)
     r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=square_size,
                    max_islands=args.max_islands, relax=relax)
+    return _report_export(args.run, r)
+
+
+def _report_export(run: str, r) -> int:
     a, m = r.atlas, r.uv_metrics
     print(f"atlas: {a.islands} islands from {a.charts_used} charts, seam length {m['seam_length']:.2f}, "
           f"distortion_metric {m['distortion_metric']:.3f}, utilization {a.utilization:.2f}, "
           f"doubly covered {a.doubly_covered_percent:.2f} %, fscore drop {a.fscore_drop:.2f}"
-          f" -> {Path(args.run) / 'mesh.obj'}, mesh.glb")
+          f" -> {Path(run) / 'mesh.obj'}, mesh.glb")
     return 0
 
 

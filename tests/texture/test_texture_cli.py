@@ -270,3 +270,37 @@ def test_atlas_json_holds_the_config_that_reproduces_the_export(fresh_sphere_run
     export_run(again, texture=cfg["texture"], size=cfg["size"], padding=cfg["padding"],
                square_size=cfg["square_size"], max_islands=atlas_cfg.max_islands, relax=atlas_cfg.relax.iterations)
     assert (again / "mesh.obj").read_bytes() == (fresh_sphere_run / "mesh.obj").read_bytes()
+
+
+def test_export_config_repeats_an_export(fresh_sphere_run, tmp_path, capsys):
+    """`mna export RUN --config atlas.json` repeats the export that wrote it, options included;
+    a config beside other options, or with an unknown key or a bad value, is refused in one
+    line and nothing is written."""
+    import shutil
+
+    assert main(["export", str(fresh_sphere_run), "--size", "256", "--padding", "3", "--max-islands", "3",
+                 "--relax", "2", "--square-size", "0.2", "--texture", "uvgrid"]) == 0
+    saved = tmp_path / "first_atlas.json"
+    shutil.copy(fresh_sphere_run / "atlas.json", saved)
+    again = tmp_path / "again"
+    shutil.copytree(fresh_sphere_run, again)
+    for name in ("mesh.obj", "mesh.glb", "mesh_texture.png", "atlas.json"):
+        (again / name).unlink()
+    assert main(["export", str(again), "--config", str(saved)]) == 0
+    for name in ("mesh.obj", "mesh_texture.png"):
+        assert (again / name).read_bytes() == (fresh_sphere_run / name).read_bytes(), name
+    first, second = (json.loads(p.read_text()) for p in (saved, again / "atlas.json"))
+    assert second["config"] == first["config"] and second["size"] == 256 and second["padding"] == 3
+    capsys.readouterr()
+    before = _files(again)
+    assert main(["export", str(again), "--config", str(saved), "--size", "512"]) == 2
+    assert "drop --size" in _one_error_line(capsys, 2)
+    atlas_bytes = (again / "atlas.json").read_bytes()
+    bad = dict(first["config"], atlas=dict(first["config"]["atlas"], max_islandz=3))
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    assert main(["export", str(again), "--config", str(tmp_path / "bad.json")]) == 2
+    assert "max_islandz" in capsys.readouterr().err
+    (tmp_path / "neg.yaml").write_text("padding: -1\n")
+    assert main(["export", str(again), "--config", str(tmp_path / "neg.yaml")]) == 2
+    assert "--padding must be a non-negative integer" in capsys.readouterr().err
+    assert _files(again) == before and (again / "atlas.json").read_bytes() == atlas_bytes
