@@ -176,7 +176,7 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
     current, excess, it, rounds = uv, before, 0, 0
 
     def track_valid(u, e):  # unguarded: remember the best iterate a guarded run may start from
-        if (not check_crossings and e < result.valid_excess and (signed_areas(u, faces) > 0).all()
+        if (not check_crossings and e < result.valid_excess and (signed_areas(u, faces) * mirror[1] > 0).all()
                 and not len(crossing_edges(faces, u, border_edges))):
             result.valid_uv, result.valid_excess = u, e
 
