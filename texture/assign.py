@@ -39,6 +39,12 @@ FAR_TOL = 0.02
 PROJECT_TOL = 0.05
 #: above this many samples (4 per face), one sample per face (the centroid).
 MAX_SAMPLES = 200_000
+#: at most this many faces are labelled from their own samples. The labels carry no detail
+#: finer than the chart surfaces (at most MAX_GRID^2 = 16,384 grid points per chart): above
+#: this count an evenly spread subset (one face per cell of a 3D grid sized for this many
+#: cells on the surface, plus one face per connected piece) is labelled by its centroid and every other face
+#: takes the label of the labelled face nearest along the mesh (:func:`spread_labels`).
+MAX_LABELLED = 50_000
 #: chart surfaces for labelling use at most this many grid lines per side.
 MAX_GRID = 128
 
@@ -103,14 +109,72 @@ def face_samples(vertices: np.ndarray, faces: np.ndarray, bary: np.ndarray = SAM
     return np.einsum("sc,fcd->fsd", bary, vertices[faces])
 
 
+def labelled_subset(vertices: np.ndarray, faces: np.ndarray, adj, budget: int) -> np.ndarray:
+    """Sorted face ids: one face per occupied cell of a cubic grid whose cell size ``h`` is
+    chosen so that the surface holds about ``budget`` cells (``h = sqrt(area / budget)``),
+    plus the first face of every edge-connected piece (so every face has a labelled face
+    in its own piece)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from mnacore.triangles import triangle_areas
+
+    F = len(faces)
+    c = vertices[faces].mean(1)
+    h = np.sqrt(max(float(triangle_areas(vertices, faces).sum()), 1e-300) / budget)
+    for _ in range(2):  # a surface crosses more cells than its area in cells: one correction
+        cell = np.floor((c - c.min(0)) / h).astype(np.int64)
+        _, first = np.unique(cell, axis=0, return_index=True)
+        h *= np.sqrt(max(len(first) / budget, 1.0))
+    graph = coo_matrix((np.ones(len(adj.a)), (adj.a, adj.b)), shape=(F, F))
+    _, piece = connected_components(graph, directed=False)
+    _, first_of_piece = np.unique(piece, return_index=True)
+    return np.union1d(first, first_of_piece)
+
+
+def spread_labels(vertices: np.ndarray, faces: np.ndarray, adj, chosen: np.ndarray) -> np.ndarray:
+    """(F,) for every face the labelled face (one of ``chosen``) nearest to it along the mesh:
+    shortest paths over shared edges, each step weighted by the distance between the two
+    faces' centroids."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import dijkstra
+
+    F = len(faces)
+    c = vertices[faces].mean(1)
+    w = np.linalg.norm(c[adj.a] - c[adj.b], axis=1) + 1e-12
+    g = sp.coo_matrix((np.r_[w, w], (np.r_[adj.a, adj.b], np.r_[adj.b, adj.a])), shape=(F, F)).tocsr()
+    _, _, src = dijkstra(g, indices=chosen, min_only=True, return_predecessors=True)
+    src = np.asarray(src, np.int64)
+    lost = src < 0  # cannot happen (every piece holds a chosen face); nearest centroid then
+    if lost.any():
+        src[lost] = chosen[cKDTree(c[chosen]).query(c[lost])[1]]
+    return src
+
+
 def assign_faces(vertices: np.ndarray, faces: np.ndarray, surfaces: list[ChartSurface],
                  near_tol: float = NEAR_TOL, far_tol: float = FAR_TOL,
-                 max_samples: int = MAX_SAMPLES) -> Assignment:
+                 max_samples: int = MAX_SAMPLES, max_labelled: int = MAX_LABELLED) -> Assignment:
     """Label each face of ``(vertices (V,3) unit frame, faces (F,3))``; see the module docstring.
 
     Meshes with more than ``max_samples / 4`` faces get one sample per face (the centroid):
-    their faces are small next to the charts' features, and neighbours vote alike.
+    their faces are small next to the charts' features, and neighbours vote alike. Meshes
+    with more than ``max_labelled`` faces: only :func:`labelled_subset` is labelled so, and
+    every other face copies label, far flag and distance from its :func:`spread_labels` face.
     """
+    if len(faces) > max_labelled:
+        from .regions import face_adjacency
+
+        adj = face_adjacency(vertices, faces)
+        chosen = labelled_subset(vertices, faces, adj, max_labelled)
+        # one sample (the centroid) per labelled face: the subset is already spread evenly
+        sub = assign_faces(vertices, faces[chosen], surfaces, near_tol, far_tol, len(chosen), len(chosen))
+        at = np.zeros(len(faces), np.int64)
+        at[chosen] = np.arange(len(chosen))
+        src = at[spread_labels(vertices, faces, adj, chosen)]
+        far = sub.far[src]
+        stats = {**sub.stats, "labelled_faces": int(len(chosen)), "far_faces": int(far.sum()),
+                 "faces_per_chart": np.bincount(sub.label[src], minlength=len(surfaces)).tolist()}
+        return Assignment(sub.label[src], far, sub.distance[src], stats)
     bary = SAMPLES_BARY if len(faces) * len(SAMPLES_BARY) <= max_samples else SAMPLES_BARY[:1]
     F, S, K = len(faces), len(bary), len(surfaces)
     pts = face_samples(vertices, faces, bary).reshape(-1, 3)
@@ -140,7 +204,7 @@ def assign_faces(vertices: np.ndarray, faces: np.ndarray, surfaces: list[ChartSu
     plain = np.argmin(dist, axis=1).reshape(F, S)
     # far faces: the chart nearest to the centroid (sample 0) instead of the depth vote
     label[far] = plain[far, 0]
-    stats = {"samples_per_face": S, "near_tol": near_tol, "far_tol": far_tol,
+    stats = {"samples_per_face": S, "labelled_faces": F, "near_tol": near_tol, "far_tol": far_tol,
              "far_faces": int(far.sum()),
              "depth_vote_changed_samples": int((vote != plain.ravel()).sum()),
              "faces_per_chart": np.bincount(label, minlength=K).tolist()}

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mnacore import distortion as D
-from mnacore.triangles import triangle_areas
+from mnacore.triangles import signed_areas, triangle_areas
 
 from . import parallel
 from .distortion_faces import face_geometry
@@ -136,6 +136,10 @@ class IslandRelaxation:
     excess_before: float
     excess_after: float
     stopped_by_crossing: bool
+    valid_uv: np.ndarray | None = None
+    """Unguarded runs (``check_crossings=False``): the lowest-energy iterate (the start
+    included) with no flipped face and no border crossing, None if there was none."""
+    valid_excess: float = np.inf
 
 
 def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxConfig,
@@ -170,6 +174,13 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
 
     data = start(uv)
     current, excess, it, rounds = uv, before, 0, 0
+
+    def track_valid(u, e):  # unguarded: remember the best iterate a guarded run may start from
+        if (not check_crossings and e < result.valid_excess and (signed_areas(u, faces) * mirror[1] > 0).all()
+                and not len(crossing_edges(faces, u, border_edges))):
+            result.valid_uv, result.valid_excess = u, e
+
+    track_valid(uv, before)
     while it < cfg.iterations:
         nxt = np.array(igl.slim_solve(data, 1)[:, :2], np.float64) * mirror
         new_excess = energy_excess(xyz, nxt, faces) if np.isfinite(nxt).all() else np.inf
@@ -190,6 +201,7 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
             continue
         gain = excess - new_excess
         current, excess = nxt, new_excess
+        track_valid(current, excess)
         it += 1
         result.iterations = it
         if gain < cfg.min_gain:

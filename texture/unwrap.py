@@ -17,7 +17,9 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
 5. ``relax``: SLIM toward an isometry (:func:`texture.relax.relax_meshes`), all islands
    at the one scale above (so one texel density), border crossings prevented; each
    island's flips and boundary crossings are counted afterwards.
-6. ``pack``: :func:`texture.pack.pack_islands` at ``resolution`` and ``padding``.
+6. ``split``: islands above ``target_distortion`` halved and re-flattened; islands too long
+   to pack densely halved across their length, UVs kept (:mod:`texture.unwrap_islands`).
+7. ``pack``: :func:`texture.pack.pack_islands` at ``resolution`` and ``padding``.
 
 Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
 the same corner order, in the input frame; output vertex = one per distinct (input
@@ -49,6 +51,7 @@ from .unwrap_islands import (
     refine_islands,
     relax_islands,
     slit_islands,
+    split_long_islands,
     whole_components,
 )
 
@@ -88,6 +91,13 @@ class UnwrapConfig:
     the island contributing most is halved and re-flattened (issue target: 0.15)."""
     max_split_rounds: int = 16
     """Most halvings for ``target_distortion``."""
+    long_fill: float = 0.6
+    """Islands longer than the side of a square holding all islands at this utilisation are
+    halved across their length (:func:`texture.unwrap_islands.split_long_islands`)."""
+    long_max_splits: int = 4
+    """Most such halvings (0 = off)."""
+    long_max_islands: int = 8
+    """No such halving gives a connected component more islands than this."""
 
 
 @dataclass
@@ -116,15 +126,15 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
     weld_of_work[prep.corner_vertex[prep.work_face >= 0].ravel()] = weld[prep.faces[prep.work_face >= 0].ravel()]
     node_weld = weld_of_work[node_work]
     node_island = np.repeat(np.arange(len(islands)), [len(isl.uv) for isl in islands])
-    lookup = {}
-    for n in range(len(node_weld) - 1, -1, -1):
-        lookup[(int(node_island[n]), int(node_weld[n]))] = n
-        lookup[(-1, int(node_weld[n]))] = n
+    # first island vertex (lowest id) on each welded point, -1 where none
+    first_node = np.full(len(prep.vertices), -1, np.int64)
+    welds, first_at = np.unique(node_weld, return_index=True)
+    first_node[welds[welds >= 0]] = first_at[welds >= 0]
     isolated = 0
     degenerate = np.flatnonzero(prep.work_face < 0)
     for f in degenerate:
-        w = weld[prep.faces[f]]
-        first = next((lookup[(-1, int(x))] for x in w if (-1, int(x)) in lookup), None)
+        nodes = first_node[weld[prep.faces[f]]]
+        first = next((int(n) for n in nodes if n >= 0), None)
         if first is None:
             isolated += 1
             corner_node[f] = 0  # nowhere to sit: collapsed onto one UV point
@@ -235,6 +245,8 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     fstats["whole_preferred"] = swapped
     t0 = time.perf_counter()
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
+    islands, long_stats = split_long_islands(islands, prep.component, cfg)
+    split_stats.update(long_stats)
     t["split"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

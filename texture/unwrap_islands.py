@@ -298,3 +298,101 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
     st["mean_excess"] = float((a * e).sum() / a.sum())
     st["distortion_metric"] = atlas_distortion(islands)
     return islands, st
+
+
+def _principal_extent(uv: np.ndarray) -> tuple[float, np.ndarray]:
+    """(length of ``uv`` along its principal axis, that unit axis)."""
+    d = uv - uv.mean(0)
+    _, vec = np.linalg.eigh(d.T @ d)
+    axis = vec[:, -1]
+    s = d @ axis
+    return float(s.max() - s.min()), axis
+
+
+def _sub_island(isl: Island, sel: np.ndarray) -> Island:
+    vid, inv = np.unique(isl.faces[sel], return_inverse=True)
+    return Island(inv.reshape(-1, 3), isl.uv[vid], isl.xyz[vid], isl.work_faces[sel], isl.work_vertex[vid], isl.label)
+
+
+def _connected(faces: np.ndarray) -> bool:
+    """One piece, through shared edges and through shared vertices alike."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from .regions import face_adjacency
+
+    if len(faces) == 0 or face_components(faces).max() > 0:
+        return False
+    adj = face_adjacency(np.zeros((int(faces.max()) + 1, 3)), faces)
+    g = coo_matrix((np.ones(len(adj.a)), (adj.a, adj.b)), shape=(len(faces), len(faces)))
+    return connected_components(g, directed=False)[0] == 1
+
+
+#: cut positions tried by :func:`split_long_islands`: these fractions of the island's area
+#: lie before the cut along its principal axis.
+LONG_CUTS = np.linspace(0.3, 0.7, 9)
+
+
+def halve_across(isl: Island) -> list[Island] | None:
+    """The island cut in two across its principal UV axis, at the position (among ``LONG_CUTS``)
+    with the shortest cut (3D length; ties: the more even halves) whose two halves are each
+    one piece; None if none is.
+    The halves keep their UVs: parts of a flip-free, overlap-free island stay so."""
+    from .regions import face_adjacency
+
+    _, axis = _principal_extent(isl.uv)
+    s = isl.uv[isl.faces].mean(1) @ axis
+    area = triangle_areas(isl.xyz, isl.faces)
+    order = np.argsort(s, kind="stable")
+    cum = np.cumsum(area[order]) / area.sum()
+    adj = face_adjacency(isl.xyz, isl.faces)
+    best = None
+    for q in sorted(LONG_CUTS, key=lambda q: abs(q - 0.5)):  # equal cuts: the more even one
+        lo = np.zeros(len(isl.faces), bool)
+        lo[order[:int(np.searchsorted(cum, q)) + 1]] = True
+        if lo.all():
+            continue
+        cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
+        if best is not None and cut >= best[0]:
+            continue
+        a, b = np.flatnonzero(lo), np.flatnonzero(~lo)
+        if _connected(isl.faces[a]) and _connected(isl.faces[b]):
+            best = (cut, a, b)
+    if best is None:
+        return None
+    return [_sub_island(isl, best[1]), _sub_island(isl, best[2])]
+
+
+def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[list[Island], dict]:
+    """Halve (:func:`halve_across`) islands too long to pack densely, longest first.
+
+    A square atlas that holds all islands' UV area at utilisation ``cfg.long_fill`` has the
+    side ``S = sqrt(area / long_fill)``; an island longer than ``S`` along its principal axis
+    forces a lower utilisation whatever the packer does (a strip around a torus's tube set
+    the atlas's width, utilisation 0.22). Such an island is halved across that axis at its
+    narrowest cut; its UVs are kept, so distortion, flips and overlap do not change; only a
+    seam and an island are added. At most ``cfg.long_max_splits`` halvings, and none that
+    would give a connected component more than ``cfg.long_max_islands`` islands.
+    """
+    st = {"long_islands_split": 0}
+    if cfg.long_max_splits <= 0 or not islands:
+        return islands, st
+    total = sum(float(np.abs(signed_areas(i.uv, i.faces)).sum()) for i in islands)
+    side = float(np.sqrt(total / cfg.long_fill))
+    per_comp = np.bincount([int(comp[i.work_faces[0]]) for i in islands], minlength=int(comp.max()) + 1)
+    skip: set[int] = set()
+    for _ in range(cfg.long_max_splits):
+        length = [(_principal_extent(i.uv)[0] if id(i) not in skip else 0.0) for i in islands]
+        k = int(np.argmax(length))
+        c = int(comp[islands[k].work_faces[0]])
+        if length[k] <= side or per_comp[c] >= cfg.long_max_islands:
+            break
+        halves = halve_across(islands[k])
+        if halves is None:
+            skip.add(id(islands[k]))
+            continue
+        islands = islands[:k] + islands[k + 1:] + halves
+        per_comp[c] += 1
+        st["long_islands_split"] += 1
+    st["atlas_side"] = side
+    return islands, st

@@ -162,3 +162,26 @@ def test_meshes_relaxed_in_processes_match_one_by_one(monkeypatch):
     # one mesh through relax_islands at the same scale gives the same UVs as in the batch
     alone, _ = relax_islands(xyz_c, uv_c, f_c, None, cfg, scale=1.3)
     np.testing.assert_array_equal(alone, serial[0][0])
+
+
+def test_unguarded_run_keeps_its_best_valid_iterate_and_relax_disk_continues_from_it():
+    """The saddle cone's free SLIM ends overlapping itself; the run still reports its best
+    iterate without flips or border crossings, and relax_disk's guarded run continues from it
+    to a crossing-free, flip-free map at a twentieth of the start's energy."""
+    from texture.flatten import relax_disk
+
+    xyz, uv, faces = _saddle_cone()
+    uv = uv * [1.0, -1.0]  # counter-clockwise, as relax_disk's Tutte starts are
+    assert (_signed_areas(uv, faces) > 0).all()
+    cfg = RelaxConfig(iterations=40, min_gain=1e-7)
+    free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
+    assert len(crossing_edges(faces, free.uv)) > 0
+    assert free.valid_uv is not None
+    assert len(crossing_edges(faces, free.valid_uv)) == 0 and (_signed_areas(free.valid_uv, faces) > 0).all()
+    assert free.valid_excess == pytest.approx(energy_excess(xyz, free.valid_uv, faces), rel=1e-12)
+    assert free.valid_excess < 0.1 * free.excess_before
+    out, st = relax_disk(xyz, uv, faces, cfg)
+    assert st["mode"] == "guarded"
+    assert len(crossing_edges(faces, out)) == 0 and _overlap_texels(out, faces) == 0
+    assert (_signed_areas(out, faces) > 0).all()
+    assert energy_excess(xyz, out, faces) <= free.valid_excess < free.excess_before / 18

@@ -76,7 +76,10 @@ def island_topology(res) -> list[tuple[int, int]]:
 
 def test_cylinder_unwraps_isometrically_with_one_straight_seam():
     mesh = cylinder()
-    res = unwrap_mesh(mesh.vertices, mesh.faces, cylinder_chart(mesh), FAST)
+    from dataclasses import replace
+
+    # without halving long islands: one island, one seam
+    res = unwrap_mesh(mesh.vertices, mesh.faces, cylinder_chart(mesh), replace(FAST, long_max_splits=0))
     check_faithful(mesh, res)
     m = measure(res.mesh, reference=mesh).summary
     assert res.stats["islands"] == 1 and m["charts"] == 1
@@ -87,6 +90,17 @@ def test_cylinder_unwraps_isometrically_with_one_straight_seam():
     h_norm = 1.0 / np.sqrt(2 * np.pi * 0.5 * 1.0)
     assert h_norm - 1e-9 <= m["seam_length"] <= 1.5 * h_norm
     assert res.stats["assignment"]["fallback_area_fraction"] == 0.0
+    # by default the unrolled 3.1 x 1 strip is longer than the side of a square holding its
+    # area at utilisation 0.6 (2.3): it is halved across (one more cut of length h), both
+    # halves isometric as before, and the atlas is used more than twice as well
+    res2 = unwrap_mesh(mesh.vertices, mesh.faces, cylinder_chart(mesh), FAST)
+    check_faithful(mesh, res2)
+    m2 = measure(res2.mesh, reference=mesh).summary
+    assert res2.stats["islands"] == 2 and m2["charts"] == 2 and res2.stats["splits"]["long_islands_split"] == 1
+    assert m2["distortion_metric"] == pytest.approx(m["distortion_metric"], abs=1e-6)
+    assert m2["flipped_faces"] == 0 and m2["uv_overlap_percent"] == 0.0
+    assert m2["seam_length"] <= m["seam_length"] + 1.5 * h_norm
+    assert m2["utilization"] > 2 * m["utilization"]
 
 
 @pytest.mark.parametrize("name", ["torus", "genus2"])
@@ -261,3 +275,75 @@ def test_smooth_borders_removes_teeth_and_terminates():
     assert changed > 0 and border_edges(out) <= border_edges(straight) + 2 < border_edges(teeth)
     again, changed2 = smooth_borders(out, adj)
     assert changed2 == 0 and (again == out).all()  # a fixed point: no face has two foreign neighbours
+
+
+def _flat_island(nx: int, ny: int, x0: float = 0.0, first_face: int = 0):
+    """A flat nx-by-ny unit-cell grid island (UV = xy), faces counter-clockwise."""
+    from texture.unwrap_islands import Island
+
+    x, y = np.meshgrid(np.arange(nx + 1) + x0, np.arange(ny + 1), indexing="xy")
+    uv = np.column_stack([x.ravel(), y.ravel()]).astype(float)
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="xy")
+    a = (j * (nx + 1) + i).ravel()
+    faces = np.concatenate([np.column_stack([a, a + 1, a + nx + 2]), np.column_stack([a, a + nx + 2, a + nx + 1])])
+    xyz = np.column_stack([uv, np.zeros(len(uv))])
+    return Island(faces, uv, xyz, first_face + np.arange(len(faces)), np.arange(len(uv)), 0)
+
+
+def test_islands_too_long_to_pack_densely_are_halved_with_their_uvs_kept():
+    """A 16 x 1 strip next to a 2 x 2 square: the square atlas holding their area (20) at
+    utilisation 0.6 has side 5.8, so the strip is halved across its length (cut length 1),
+    then its halves (8 long) once more; each piece keeps its faces' UV triangles. With a
+    looser fill (side >= 16) nothing is cut."""
+    from texture.unwrap_islands import _principal_extent, split_long_islands
+
+    strip, square = _flat_island(16, 1), _flat_island(2, 2, x0=20.0, first_face=32)
+    before = {int(w): uv for isl in (strip, square) for w, uv in zip(isl.work_faces, isl.uv[isl.faces])}
+    comp = np.zeros(40, np.int64)
+    cfg = UnwrapConfig()
+    out, st = split_long_islands([strip, square], comp, cfg)
+    side = np.sqrt(20 / cfg.long_fill)
+    assert st["atlas_side"] == pytest.approx(side)
+    assert st["long_islands_split"] == 3 and len(out) == 5
+    lengths = sorted(_principal_extent(isl.uv)[0] for isl in out)
+    # the strip in quarters (each cut across it, at its middle); the square (length 2 to 2.83,
+    # its principal axis is any direction) untouched
+    assert lengths[-1] <= side and lengths[1:] == pytest.approx([4, 4, 4, 4], abs=1e-9)
+    assert 2 - 1e-9 <= lengths[0] <= np.sqrt(8) + 1e-9
+    got = np.concatenate([isl.work_faces for isl in out])
+    assert sorted(got.tolist()) == list(range(40))  # every face once
+    for isl in out:
+        for w, uv in zip(isl.work_faces, isl.uv[isl.faces]):
+            np.testing.assert_array_equal(uv, before[int(w)])
+        assert len(np.unique(isl.faces)) == len(isl.uv)  # no unused vertices
+    # a fill at which the strip fits the atlas's side: nothing cut
+    loose = UnwrapConfig(long_fill=20 / 16.5**2)
+    out, st = split_long_islands([strip, square], comp, loose)
+    assert st["long_islands_split"] == 0 and len(out) == 2
+    # the island cap per component holds: at most 3 islands, so one halving
+    out, st = split_long_islands([strip, square], comp, UnwrapConfig(long_max_islands=3))
+    assert st["long_islands_split"] == 1 and len(out) == 3
+
+
+def test_large_meshes_label_an_even_subset_and_spread_it_along_the_mesh():
+    """Above ``max_labelled`` faces, about that many faces (one per grid cell, at least one
+    per piece) are labelled from the charts; the others copy the nearest labelled face along
+    the mesh. On a cap-charted sphere the labels agree with labelling every face on all but
+    the faces near the caps' border."""
+    from texture.assign import assign_faces, chart_surfaces
+
+    uv, xyz, occ = sphere_charts(48)
+    charts = ChartGrids(uv, xyz, occ, 0.5, Normalization(CENTER, SCALE))
+    mesh = shapes.sphere(radius=1.0, subdivisions=4)  # 5120 faces, unit frame already
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    surfaces = chart_surfaces(charts)
+    full = assign_faces(v, f, surfaces)
+    sub = assign_faces(v, f, surfaces, max_labelled=600)
+    assert full.stats["labelled_faces"] == len(f)
+    assert 300 <= sub.stats["labelled_faces"] <= 900
+    assert sub.label.shape == (len(f),) and set(np.unique(sub.label)) <= {0, 1}
+    z = v[f].mean(1)[:, 2]
+    away = np.abs(z) > 0.2  # the caps meet around the equator (105 degrees each)
+    assert (sub.label[away] == full.label[away]).all()
+    assert (sub.label == full.label).mean() > 0.95
+    assert sub.stats["far_faces"] == full.stats["far_faces"] == 0
