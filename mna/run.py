@@ -233,16 +233,18 @@ def _write_points(path: Path, points: np.ndarray, dtype: type = np.float32) -> N
 
 
 def _write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray | None, dtype: type) -> None:
-    """trimesh's PLY (always float32) unless ``dtype`` is float64: then a binary PLY of doubles,
-    which trimesh, Open3D and Blender read too."""
-    if dtype == np.float32:
+    """trimesh's PLY (always float32) unless ``dtype`` is float64 or there is no vertex (a
+    collapsed fit samples no point, and trimesh cannot write an empty cloud): then a binary
+    PLY written here, which trimesh, Open3D and Blender read too."""
+    if dtype == np.float32 and len(vertices):
         obj = trimesh.PointCloud(vertices) if faces is None else trimesh.Trimesh(vertices, faces, process=False)
         with atomic_path(path) as tmp:
             obj.export(tmp)
         return
-    v = np.ascontiguousarray(vertices, dtype="<f8")
+    kind, fmt = ("double", "<f8") if dtype == np.float64 else ("float", "<f4")
+    v = np.ascontiguousarray(np.reshape(vertices, (-1, 3)), dtype=fmt)
     header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(v)}",
-              "property double x", "property double y", "property double z"]
+              f"property {kind} x", f"property {kind} y", f"property {kind} z"]
     body = v.tobytes()
     if faces is not None:
         f = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])

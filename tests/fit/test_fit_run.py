@@ -141,3 +141,20 @@ def test_flush_to_zero_is_scoped(torus_file, tmp_path):
     assert not _denormals_flushed()
     fit_run(torus_file, tmp_path / "run", _tiny(5), progress_bar=False, log=lambda s: None)
     assert not _denormals_flushed()
+
+
+def test_collapsed_fit_writes_an_empty_cloud_and_zero_scores(torus_file, tmp_path):
+    """A fit whose domains hold no UV point (the naive classifier's collapse) is a result, not
+    a crash: points.ply is a readable PLY of 0 points, F-score 0, Chamfer null (infinite)."""
+    from mna.run import extract_run
+
+    run = tmp_path / "run"
+    fit_run(torus_file, run, _tiny(3), progress_bar=False, log=lambda s: None)
+    model, cfg, _, _ = load_model(run)
+    model.c.fill_(1e9)  # o_k = l_k / c < tau everywhere: empty domains
+    metrics = extract_run(run, model=model, cfg=cfg)
+    assert metrics["fscore_pcl"] == 0.0 and not np.isfinite(metrics["chamfer_pcl"])
+    head = (run / "points.ply").read_bytes().split(b"end_header")[0].decode()
+    assert "element vertex 0" in head and "property float x" in head
+    saved = json.loads((run / "metrics.json").read_text())
+    assert saved["fscore_pcl"] == 0.0 and saved["chamfer_pcl"] is None
