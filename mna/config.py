@@ -244,10 +244,12 @@ def fast() -> FitConfig:
         uv_samples=3000,
         targets=3000,
         dist_samples=256,
-        # 10x the paper's weight: on the bunny at equal steps, F-score unchanged and
-        # distortion_metric 0.52 instead of 1.06 (benchmarks/RESULTS.md, fit_quality).
-        # L_orient (mesh inputs): on the bunny at 2,000 steps, inside-out chart area 5.6 % ->
-        # 0.4 % of the surface and 11 -> 4 trimmed islands; 1e-2 raised distortion to 0.49
+        # 10x the paper's weight: the small `fast` charts bend more per step, and at equal
+        # steps the F-score stayed the same while distortion_metric halved (0.52 vs 1.06 on a
+        # 7k-face genus-0 scan; benchmarks/RESULTS.md, fit_quality). L_orient (mesh inputs):
+        # charts fold inside out where the surface curves sharply; at 2,000 steps on that scan
+        # the inside-out chart area fell 5.6 % -> 0.4 % (11 -> 4 trimmed islands), while
+        # 1e-2 raised distortion to 0.49
         loss=LossConfig(w_dist=1e-4, w_orient=1e-3),
         lr=1e-3,
         lr_decay_start=0.55,
