@@ -20,8 +20,8 @@ def render_section(rows: list[dict], info: dict, hard: tuple[str, ...]) -> str:
         "",
         f"`benchmarks/paper_tables.py --size {info['size']}` ({info['device']}, {info['machine']}, "
         f"{info['jobs']} runs at a time, {info['threads']} torch thread(s) each; load average at start "
-        f"{info['load']:.1f}; {info['wall'] / 60:.0f} min in all). Budgets are epochs and steps, so the "
-        "numbers do not depend on the load.",
+        f"{info['load']:.1f}; {len(rows)} runs, {sum(r.get('seconds', 0.0) for r in rows) / 60:.0f} min summed over "
+        "the runs). Budgets are epochs and steps, so the numbers do not depend on the load.",
         "",
         f"- **conditional** (the paper's setting): `mna train` on the procedural family (`mna.family`: "
         f"{info['per_topology']} members per topology, {held} held out; charts and label nets {info['width']} "
@@ -30,7 +30,8 @@ def render_section(rows: list[dict], info: dict, hard: tuple[str, ...]) -> str:
         f"members ({info['eval_points']} points each side, F@1 % in the unit-ball frame); seeds "
         f"{', '.join(map(str, info['seeds']))}: mean ± standard deviation.",
         f"- **per-shape**: `mna fit --preset fast`, {info['fit_steps']} steps, seed 0, L_orient off (not in "
-        f"the paper), on {shapes}: mean ± standard deviation over the shapes.",
+        f"the paper), on {shapes}: mean ± standard deviation over the shapes; charts vs squares on "
+        f"{', '.join(info['square_shapes'])} only (its MNA rows too).",
         "- CD is ours (squared distances, both directions, unit-ball frame); the paper's is x1e-4 in "
         "its own frame: compare directions, not values. F@1 % = F-score at 0.02 (1 % of the unit ball's "
         "diameter).",
@@ -76,6 +77,7 @@ def figure(rows: list[dict], stem: Path, ks: tuple[int, ...]) -> None:
     for setting, style in (("conditional", "-"), ("per-shape", "--")):
         r = paper.select(rows, setting=setting, variant="full")
         r += [dict(x, ldist=False, variant="full") for x in paper.select(rows, setting=setting, variant="no_ldist")]
+        r = paper.common_shapes(r)
         for method in ("mna", "atlasnet"):
             for ldist in (True, False):
                 pts = [(k, paper.summary(paper.select(r, method=method, charts=k, ldist=ldist), "chamfer_pcl")[0])

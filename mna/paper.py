@@ -165,7 +165,16 @@ def claims(rows: list[dict], setting: str) -> list[dict]:
     return out
 
 
+def common_shapes(rows: list[dict], among: list[dict] | None = None) -> list[dict]:
+    """The rows on the shapes that the squares (AtlasNet) runs of ``among`` (default: of
+    ``rows``) also used: a comparison of means must not set one shape set against another."""
+    shapes = {x["shape"] for x in (rows if among is None else among) if x["method"] == "atlasnet"}
+    return [x for x in rows if x["shape"] in shapes] if shapes else rows
+
+
 def _squares_claims(r, full, add) -> None:
+    full = common_shapes(full, among=r)
+    r = common_shapes(r)
     an3 = select(r, variant="full", method="atlasnet", charts=3, ldist=False)
     c = compare(full, an3)
     add("charts beat squares at equal K (3)", "F 83.63 vs 81.98",
@@ -245,6 +254,7 @@ def squares_table(rows: list[dict], setting: str) -> str:
     lines = [head]
     r = select(rows, setting=setting, variant="full")
     r += [dict(x, variant="full", ldist=False) for x in select(rows, setting=setting, variant="no_ldist")]
+    r = common_shapes(r)
     for k in sorted({x["charts"] for x in r}):
         cells = []
         for key, digits in (("fscore_pcl", 2), ("distortion_metric", 3)):
