@@ -161,7 +161,8 @@ def write_section(text: str) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", default="/tmp/mna_unwrap_bench", help="fits and outputs go here")
+    ap.add_argument("--work", default=str(Path(__file__).resolve().parent / "runs" / "unwrap"),
+                    help="fits and outputs go here (default benchmarks/runs/unwrap, git-ignored)")
     ap.add_argument("--only", nargs="*", default=None, help="mesh stems to run")
     ap.add_argument("--steps", type=int, default=1000, help="fit steps per mesh (default 1000)")
     ap.add_argument("--size", type=int, default=2048)
