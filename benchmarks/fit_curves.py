@@ -23,7 +23,7 @@ from mna import config as C
 from mna import shapes
 from mna.data import load_surface
 from mna.fit import Fitter
-from mna.inference import estimate_c
+from mna.inference import settle_c
 from mna.model import flush_denormals
 from mna.reconstruct import shape_metrics
 
@@ -32,13 +32,7 @@ SHARED_HARD = ("cesium_milk_truck.obj",)
 
 def hard_inputs(work: Path, meshes: Path) -> list[Path]:
     """The procedural hard shapes (written once under ``work``) and the shared ones present."""
-    paths = []
-    for name in shapes.HARD_SHAPES:
-        path = work / "shapes" / f"{name}.ply"
-        if not path.is_file():
-            path.parent.mkdir(parents=True, exist_ok=True)
-            shapes.make(name).export(path)
-        paths.append(path)
+    paths = [shapes.shape_file(name, work / "shapes") for name in shapes.HARD_SHAPES]
     return paths + [meshes / n for n in SHARED_HARD if (meshes / n).is_file()]
 
 
@@ -46,8 +40,7 @@ def score(fitter: Fitter, reference: np.ndarray) -> dict:
     """Metrics of the model as it stands, on a copy that gets its own c (as a finished fit)."""
     cfg = fitter.cfg
     model = copy.deepcopy(fitter.model).eval()
-    gen = torch.Generator().manual_seed(cfg.seed + 1)
-    model.c.fill_(float(estimate_c(model, gen, cfg.c_samples, cfg.eta, naive=cfg.ablation.naive_classifier)[0]))
+    settle_c(model, cfg)
     m = shape_metrics(model, reference, cfg, cfg.eval_points, full=True)
     return {k: m[k] for k in ("fscore_mesh", "fscore_pcl", "chamfer_mesh", "distortion_metric", "occupancy_mean")}
 

@@ -103,11 +103,7 @@ def shape_path(name: str, work: Path) -> Path:
     from mna import shapes
 
     if name in shapes.SHAPES:
-        path = work / "shapes" / f"{name}.ply"
-        if not path.is_file():
-            path.parent.mkdir(parents=True, exist_ok=True)
-            shapes.make(name).export(path)
-        return path
+        return shapes.shape_file(name, work / "shapes")
     found = sorted(MESHES.glob(f"{name}.*"))
     if not found:
         raise SystemExit(f"paper_tables: mesh {name!r} not found in {MESHES}")
@@ -210,7 +206,6 @@ def main(argv: list[str] | None = None) -> int:
     family.write_family(work / "family", s.per_topology, s.held_out)
     specs = run_specs(s)
     load = os.getloadavg()[0]
-    t0 = time.perf_counter()
     jobs = [(spec, s, work, args.device, args.threads) for spec in specs]
     rows = []
     from tqdm.auto import tqdm
@@ -223,9 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
             for row in tqdm(pool.map(run_one, jobs), total=len(jobs), desc="paper runs", dynamic_ncols=True):
                 rows.append(row)
-    wall = sum(r.get("seconds", 0.0) for r in rows) / max(1, args.jobs) if args.report_only else \
-        time.perf_counter() - t0
-    text = section(rows, s, args, load, wall)
+    text = section(rows, s, args, load)
     print(text)
     write_figure(rows, args.figure, s)
     if not args.no_write:
@@ -235,12 +228,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def section(rows: list[dict], s: Sizes, args, load: float, wall: float) -> str:
+def section(rows: list[dict], s: Sizes, args, load: float) -> str:
     from paper_report import render_section
 
     return render_section(rows, asdict(s) | {"size": args.size, "jobs": args.jobs, "threads": args.threads,
                                             "device": args.device, "machine": f"{platform.machine()}, "
-                                            f"{os.cpu_count()} cores", "load": load, "wall": wall}, HARD)
+                                            f"{os.cpu_count()} cores", "load": load}, HARD)
 
 
 def write_figure(rows: list[dict], stem: Path, s: Sizes) -> None:

@@ -81,6 +81,13 @@ def estimate_c(model: NeuralAtlas, generator: torch.Generator, samples: int, eta
     return c_from_probabilities(labelled_probabilities(model, uv, z), eta)
 
 
+def settle_c(model: NeuralAtlas, cfg) -> None:
+    """Fix a per-shape atlas's ``c`` (a buffer saved with it) as a finished fit does: from
+    ``cfg.c_samples`` UV samples drawn with seed ``cfg.seed + 1``."""
+    gen = torch.Generator().manual_seed(cfg.seed + 1)
+    model.c.fill_(float(estimate_c(model, gen, cfg.c_samples, cfg.eta, naive=cfg.ablation.naive_classifier)[0]))
+
+
 class PointSample(NamedTuple):
     """Accepted surface points ``points (P, 3)`` with their ``uv (P, 2)`` and ``chart (P,)``."""
 

@@ -25,7 +25,7 @@ from mna.conditional import ConditionalAtlas, LoadedCheckpoint, bake, load_check
 from mna.config import FitConfig
 from mna.data import load_surface
 from mna.fit import Fitter, resolve_device
-from mna.inference import estimate_c, extract_grid, rejection_sample
+from mna.inference import extract_grid, rejection_sample, settle_c
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas
 from mna.run import extract_run, prepare_output, run_config_dict, save_checkpoint
@@ -45,9 +45,7 @@ def shape_atlas(model: ConditionalAtlas, inputs: torch.Tensor, fit_cfg: FitConfi
     model.eval()
     z = model.encode(inputs.unsqueeze(0))  # (1, D)
     atlas = bake(model.atlas, z)
-    gen = torch.Generator().manual_seed(fit_cfg.seed + 1)
-    atlas.c.fill_(float(estimate_c(atlas, gen, fit_cfg.c_samples, fit_cfg.eta,
-                                   naive=fit_cfg.ablation.naive_classifier)[0]))
+    settle_c(atlas, fit_cfg)
     return atlas, z
 
 

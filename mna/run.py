@@ -23,7 +23,7 @@ from mna.checkpoint import read_state, write_state
 from mna.config import FitConfig
 from mna.data import Surface, load_surface
 from mna.fit import Fitter, resolve_device
-from mna.inference import estimate_c, extract_grid, rejection_sample
+from mna.inference import extract_grid, rejection_sample, settle_c
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas, flush_denormals
 from mna.runfolder import prepare_run_folder
@@ -143,10 +143,7 @@ def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input
     if interrupted:
         log(f"interrupted at step {fitter.step}; checkpoint saved to {out / CHECKPOINT} (continue with --resume)")
         return FitRunResult(out, True, fitter.step, fitter.elapsed, None, fitter.stop_signal), fit_seconds
-    # c is part of the model from here on (a buffer saved with the checkpoint)
-    gen = torch.Generator().manual_seed(cfg.seed + 1)
-    fitter.model.c.fill_(float(estimate_c(fitter.model, gen, cfg.c_samples, cfg.eta,
-                                          naive=cfg.ablation.naive_classifier)[0]))
+    settle_c(fitter.model, cfg)  # c is part of the model from here on (saved with the checkpoint)
     save_checkpoint(out, fitter, surface.normalization)
     return FitRunResult(out, False, fitter.step, fitter.elapsed, None), fit_seconds
 

@@ -5,6 +5,8 @@ closed-form area where one exists, so tests can assert against it.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 
@@ -127,6 +129,16 @@ def assembly(parts: int = 12, seed: int = 0) -> trimesh.Trimesh:
 SHAPES = {"sphere": sphere, "torus": torus, "genus2": genus2, "two_spheres": two_spheres, "sheet": sheet}
 #: shapes that are hard for a 3-chart fit (issue 18): handles, fine relief, thin limbs, many parts
 HARD_SHAPES = {"genus4": genus4, "bumpy": bumpy, "limbs": limbs, "assembly": assembly}
+
+
+def shape_file(name: str, folder: str | Path) -> Path:
+    """``folder/<name>.ply`` holding the built-in shape ``name``, written on first use
+    (benchmarks feed shapes to commands that read files)."""
+    path = Path(folder) / f"{name}.ply"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        make(name).export(path)
+    return path
 
 
 def make(name: str) -> trimesh.Trimesh:

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from mnacore.errors import MnaError
@@ -81,15 +80,6 @@ def _int_arg(value: str, name: str, minimum: int) -> int:
     return v
 
 
-def _positive_float(value: float | None, name: str) -> float | None:
-    """None (the default) or a finite number > 0; 0 is refused, not read as "the default"."""
-    if value is None:
-        return None
-    if not (math.isfinite(value) and value > 0):
-        raise MnaError(f"{name} must be a positive, finite number, got {value}")
-    return value
-
-
 #: `mna export` options that --config replaces (name, default)
 _EXPORT_OPTIONS = (("texture", "checker"), ("size", "2048"), ("padding", "8"), ("square_size", None),
                    ("max_islands", 6), ("relax", "8"))
@@ -106,13 +96,11 @@ def run_export(args: argparse.Namespace) -> int:
         if given:
             raise MnaError(f"--config holds every export option; drop {', '.join(given)}")
         return _report_export(args.run, export_run(args.run, config=load_export_config(args.config)))
-    square_size = _positive_float(args.square_size, "--square-size")
-    if args.max_islands < 0:
-        raise MnaError(f"--max-islands must be >= 0, got {args.max_islands}")
+    # strings parsed here; every range is checked once, by ExportConfig inside export_run
     size = check_size(args.size)
     padding = _int_arg(args.padding, "--padding", 0)
     relax = _int_arg(args.relax, "--relax", 0)
-    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=square_size,
+    r = export_run(args.run, texture=args.texture, size=size, padding=padding, square_size=args.square_size,
                    max_islands=args.max_islands, relax=relax)
     return _report_export(args.run, r)
 
