@@ -45,11 +45,19 @@ def score(fitter: Fitter, reference: np.ndarray) -> dict:
     return {k: m[k] for k in ("fscore_mesh", "fscore_pcl", "chamfer_mesh", "distortion_metric", "occupancy_mean")}
 
 
-def curve(path: Path, steps: int, every: int, charts: int = 3, seed: int = 0, device: str = "cpu") -> dict:
-    """Fit ``path`` for ``steps`` steps, scoring every ``every``; the curve and the last score."""
+def curve(path: Path, steps: int, every: int, charts: int = 3, seed: int = 0, device: str = "cpu",
+          hard_targets: int | None = None, threads: int = 0) -> dict:
+    """Fit ``path`` for ``steps`` steps, scoring every ``every``; the curve and the last score.
+
+    ``hard_targets``: None keeps the preset's; ``threads`` > 0 sets torch's CPU threads.
+    """
     cfg = C.fast()
     cfg.steps, cfg.seed, cfg.device = steps, seed, device
     cfg.model.charts = charts
+    if hard_targets is not None:
+        cfg.hard_targets = hard_targets
+    if threads:
+        torch.set_num_threads(threads)
     surface = load_surface(path)
     reference = surface.sample(cfg.eval_points, np.random.default_rng(cfg.seed + 3))
     fitter = Fitter(cfg, surface, torch.device(device))
@@ -64,7 +72,7 @@ def curve(path: Path, steps: int, every: int, charts: int = 3, seed: int = 0, de
                 print(f"  {path.stem} step {fitter.step}: F_mesh {points[-1]['fscore_mesh']:.2f}, "
                       f"d_metric {points[-1]['distortion_metric']:.3f}, {fitter.elapsed:.0f} s", flush=True)
     faces = len(surface.mesh.faces) if surface.is_mesh else 0
-    return {"mesh": path.name, "faces": faces, "charts": charts, "steps": steps,
+    return {"mesh": path.name, "faces": faces, "charts": charts, "steps": steps, "hard_targets": cfg.hard_targets,
             "sps": steps / max(fitter.elapsed, 1e-9), "wall": fitter.elapsed, "curve": points, **points[-1]}
 
 

@@ -128,6 +128,12 @@ class FitConfig(AtlasSettings):
     """UV samples per chart per step."""
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
+    charts_rule: str = "fixed"
+    """``fixed``: ``model.charts`` as given; ``topology``: chosen from the input mesh's genus
+    (:mod:`mna.chart_count`) when the fit starts, and saved resolved in ``model.charts``."""
+    hard_targets: int = 0
+    """Extra targets per step drawn where the fit errs most (:mod:`mna.hard_targets`); they
+    pull on the charts but do not label occupancy. 0 = off (the paper)."""
     lr_decay_start: float = 1.0
     """Fraction of the run after which the lr decays (cosine); 1.0 = constant lr."""
     lr_final: float = 1.0
@@ -157,6 +163,8 @@ class FitConfig(AtlasSettings):
             check_int(self.steps, "steps", 0)
         for name in ("uv_samples", "targets", "checkpoint_every", "log_every"):
             check_int(getattr(self, name), name, 1)
+        check_int(self.hard_targets, "hard_targets", 0)
+        check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
         if not isinstance(self.preset, str):
@@ -181,6 +189,7 @@ MAX_TIME_BUDGET = 3.2e8
 #: positional-encoding octaves: 2^octaves multiplies coordinates in [-1, 1] (float32 keeps 24 bits)
 MAX_OCTAVES = 16
 DEVICES = ("auto", "cpu", "cuda")
+CHARTS_RULES = ("fixed", "topology")
 
 
 def check_int(value, name: str, low: int, high: int | None = None) -> int:

@@ -46,12 +46,43 @@ class Surface:
 
     def sample_with_normals(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None]:
         """Like :meth:`sample` (same draws), plus each point's unit face normal on a mesh (None on a cloud)."""
+        pts, nrm, _ = self.sample_elements(count, rng)
+        return pts, nrm
+
+    @property
+    def element_count(self) -> int:
+        """What a draw picks from: faces of a mesh, points of a cloud."""
+        return len(self.mesh.faces) if self.mesh is not None else len(self.points)
+
+    def sample_elements(self, count: int, rng: np.random.Generator, weight: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """``count`` points, their normals (None on a cloud) and the element (face or point) each came from.
+
+        ``weight`` (one per element, >= 0) replaces the default draw (area-uniform on a mesh,
+        uniform over a cloud's points) by one proportional to ``area x weight`` (a mesh) or
+        ``weight`` (a cloud); without it the draws are those of :meth:`sample`.
+        """
         if self.mesh is not None:
-            pts, face = trimesh.sample.sample_surface(self.mesh, count, seed=int(rng.integers(2**31 - 1)))
-            return np.asarray(pts, dtype=np.float64), self.face_normals[face]
+            face_weight = None if weight is None else self.face_areas * weight
+            pts, face = trimesh.sample.sample_surface(self.mesh, count, face_weight=face_weight,
+                                                      seed=int(rng.integers(2**31 - 1)))
+            return np.asarray(pts, dtype=np.float64), self.face_normals[face], np.asarray(face)
         replace = count > len(self.points)
-        idx = rng.choice(len(self.points), size=count, replace=replace)
-        return self.points[idx], None
+        if weight is None:
+            idx = rng.choice(len(self.points), size=count, replace=replace)
+        else:
+            idx = rng.choice(len(self.points), size=count, replace=True, p=weight / weight.sum())
+        return self.points[idx], None, idx
+
+    @functools.cached_property
+    def face_areas(self) -> np.ndarray | None:
+        """(F,) face areas in the unit-ball frame (computed once, like :attr:`face_normals`)."""
+        return None if self.mesh is None else np.array(self.mesh.area_faces, dtype=np.float64)
+
+    @functools.cached_property
+    def element_centers(self) -> np.ndarray:
+        """(E, 3): face centroids of a mesh, the points of a cloud (unit-ball frame)."""
+        return self.points if self.mesh is None else np.array(self.mesh.triangles_center, dtype=np.float64)
 
     def area(self) -> float | None:
         return float(self.mesh.area) if self.mesh is not None else None

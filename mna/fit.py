@@ -15,6 +15,7 @@ import torch
 
 from mna.config import FitConfig
 from mna.data import Surface
+from mna.hard_targets import HardTargets
 from mna.inference import uniform_uv
 from mna.interrupt import graceful_stop
 from mna.model import NeuralAtlas, flush_denormals
@@ -59,6 +60,7 @@ class Fitter:
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=cfg.lr)
         self.generator = torch.Generator().manual_seed(cfg.seed)
         self.rng = np.random.default_rng(cfg.seed)
+        self.hard = HardTargets(surface, cfg.hard_targets, cfg.targets) if cfg.hard_targets else None
         self.step = 0
         self.elapsed = 0.0
         self.stop_signal: int | None = None
@@ -78,10 +80,16 @@ class Fitter:
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr * lr_factor(self.progress(), cfg.lr_decay_start, cfg.lr_final)
         uv = uniform_uv(cfg.model.charts, cfg.uv_samples, self.generator, 1, dev)
-        pts, nrm = self.surface.sample_with_normals(cfg.targets, self.rng)
+        pts, nrm, elements = self.surface.sample_elements(cfg.targets, self.rng)
+        if self.hard is not None:
+            hp, hn, he = self.hard.draw(self.rng)
+            pts, elements = np.concatenate([pts, hp]), np.concatenate([elements, he])
+            nrm = None if nrm is None else np.concatenate([nrm, hn])
         targets = torch.from_numpy(pts).float().to(dev)
         normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
-        terms = atlas_losses(model, uv, targets[None], cfg, normals=normals)
+        terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets)
+        if self.hard is not None:
+            self.hard.record(elements, terms.distance[0].cpu().numpy())
         total = terms.total
         self.optimizer.zero_grad(set_to_none=True)
         total.backward()
@@ -99,6 +107,7 @@ class Fitter:
             "elapsed": self.elapsed,
             "torch_rng": self.generator.get_state(),
             "numpy_rng": self.rng.bit_generator.state,
+            **({"hard_targets": self.hard.state_dict()} if self.hard is not None else {}),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -108,6 +117,8 @@ class Fitter:
         self.elapsed = float(state["elapsed"])
         self.generator.set_state(state["torch_rng"])
         self.rng.bit_generator.state = state["numpy_rng"]
+        if self.hard is not None and "hard_targets" in state:
+            self.hard.load_state_dict(state["hard_targets"])
 
     # -- the loop --------------------------------------------------------------------------
     def run(self, on_checkpoint: Callable[["Fitter"], None], callback: Callable[[int], bool] | None = None,

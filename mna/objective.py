@@ -26,38 +26,46 @@ class LossTerms(NamedTuple):
     dist: torch.Tensor
     positives: int
     orient: torch.Tensor | None = None
+    distance: torch.Tensor | None = None
+    """``(B, T)`` distance of every target to its nearest chart sample (no gradient)."""
 
 
 def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig,
-                 z: torch.Tensor | None = None, normals: torch.Tensor | None = None) -> LossTerms:
+                 z: torch.Tensor | None = None, normals: torch.Tensor | None = None,
+                 labelled: int | None = None) -> LossTerms:
     """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame).
 
     ``normals (B, T, 3)``: unit surface normals of the targets, for L_orient (``w_orient > 0``;
-    without normals the term is 0).
+    without normals the term is 0). ``labelled``: only the first ``labelled`` targets of each
+    shape label PU positives (the uniform draw; the rest are hard examples that only pull,
+    :mod:`mna.hard_targets`); None = all.
     """
     orient = torch.zeros((), device=uv.device)
     if cfg.ablation.atlasnet:
-        rec, dist, n = _atlasnet_terms(model, uv, targets, cfg, z)
+        rec, dist, n, d = _atlasnet_terms(model, uv, targets, cfg, z)
         occ = torch.zeros((), device=uv.device)
     else:
-        rec, dist, occ, n, o = _mna_terms(model, uv, targets, cfg, z, normals)
+        rec, dist, occ, n, o, d = _mna_terms(model, uv, targets, cfg, z, normals, labelled)
         orient = o if o is not None else orient
     w = cfg.loss
     total = w.w_rec * rec + w.w_occ * occ + w.w_dist * dist + w.w_orient * orient
-    return LossTerms(total, rec, occ, dist, n, orient)
+    return LossTerms(total, rec, occ, dist, n, orient, d)
 
 
-def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z, normals=None):
+def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z, normals=None,
+               labelled: int | None = None):
     K, B, N, _ = uv.shape
     T = targets.shape[1]
     with torch.no_grad():
         x = model.chart(uv, z).x  # (K, B, N, 3)
     # per shape: nearest sample (flat k*N + n) of every target -> global key b*K*N + k*N + n
-    keys, labels = [], []
+    keys, labels, dists = [], [], []
     for b in range(B):
-        idx = nearest(targets[b], x[:, b].reshape(K * N, 3)).index.to(uv.device)
-        labels.append(losses.positive_labels(idx, K * N).view(K, N))
+        near = nearest(targets[b], x[:, b].reshape(K * N, 3))
+        idx = near.index.to(uv.device)
+        labels.append(losses.positive_labels(idx[:labelled], K * N).view(K, N))
         keys.append(idx + b * K * N)
+        dists.append(near.dist2.sqrt())
     labels = torch.stack(labels, 1)  # (K, B, N), like the logits
     key = torch.cat(keys)
     uniq, inverse = torch.unique(key, sorted=True, return_inverse=True)
@@ -102,20 +110,22 @@ def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg:
                               for b in range(B)]).mean()
     logits = model.label_logits(uv, x, z)  # x carries no gradient: L_occ never reaches phi
     occ = losses.occupancy_loss(logits.reshape(-1), labels.reshape(-1))
-    return rec, dist, occ, len(uniq), orient
+    return rec, dist, occ, len(uniq), orient, torch.stack(dists)
 
 
 def _atlasnet_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z):
     """No occupancy: every sample counts; bidirectional Chamfer; distortion over all samples."""
     K, B, N, _ = uv.shape
     out = model.chart(uv, z, jacobian=cfg.loss.w_dist > 0)
-    rec, dist = 0.0, []
+    rec, dist, dists = 0.0, [], []
     for b in range(B):
         pts = out.x[:, b].reshape(K * N, 3)
-        to_pts = nearest(targets[b], pts).index.to(uv.device)
+        near = nearest(targets[b], pts)
+        to_pts = near.index.to(uv.device)
+        dists.append(near.dist2.sqrt())
         to_tgt = nearest(pts, targets[b]).index.to(uv.device)
         rec = rec + losses.reconstruction_loss(targets[b], pts[to_pts]) + losses.chamfer_to(pts, targets[b], to_tgt)
         if out.jac is not None:
             dist.append(losses.distortion_loss(out.jac[:, b].reshape(-1, 3, 2), cfg.loss.eps))
     dist_t = torch.stack(dist).mean() if dist else torch.zeros((), device=uv.device)
-    return rec / B, dist_t, K * B * N
+    return rec / B, dist_t, K * B * N, torch.stack(dists)

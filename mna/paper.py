@@ -45,6 +45,8 @@ def configure(cfg, variant: str = "full", method: str = "mna", charts: int | Non
     cfg = copy.deepcopy(cfg)
     if charts is not None:
         cfg.model.charts = charts
+    if hasattr(cfg, "charts_rule"):  # a fit config: the paper's comparisons are at a fixed K
+        cfg.charts_rule = "fixed"
     cfg.ablation.atlasnet = method == "atlasnet"
     cfg.ablation.occupancy_on_uv = variant == "no_reformulation"
     cfg.ablation.naive_classifier = variant == "naive_classifier"

@@ -19,6 +19,7 @@ import torch
 import trimesh
 
 from mna import config as config_mod
+from mna.chart_count import resolve_charts
 from mna.checkpoint import read_state, write_state
 from mna.config import FitConfig
 from mna.data import Surface, load_surface
@@ -104,6 +105,9 @@ def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: boo
     cfg.validate()
     # everything is validated before the output folder is touched
     surface = load_surface(input_path)
+    charts_note = resolve_charts(cfg, surface)
+    if charts_note:
+        log(charts_note)
     device = resolve_device(cfg.device)
     if resume:
         read_metrics(out)  # a damaged metrics.json fails now, not after the fit

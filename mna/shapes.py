@@ -5,6 +5,7 @@ closed-form area where one exists, so tests can assert against it.
 """
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +83,38 @@ def genus4(resolution: int = 96) -> trimesh.Trimesh:
     return _implicit(np.maximum(slab, -holes), lin)
 
 
+def pretzel(rings: int = 3, resolution: int = 112) -> trimesh.Trimesh:
+    """``rings`` tori in a row, fused by a smooth minimum: genus ``rings`` (a pretzel), a
+    different kind of handle from :func:`genus4`'s plate (thin round tubes, not holes in a slab)."""
+    span = 0.6 * (rings - 1)
+    lin = np.linspace(-span - 1.0, span + 1.0, resolution)
+    x, y, z = np.meshgrid(lin, lin, lin, indexing="ij")
+    field = None
+    for cx in np.linspace(-span, span, rings):
+        q = np.sqrt((x - cx) ** 2 + y**2) - 0.5
+        d = np.sqrt(q**2 + z**2) - 0.17
+        if field is None:
+            field = d
+            continue
+        k = 0.12  # smooth-min radius: fuses neighbouring rings into one surface
+        h = np.clip(0.5 + 0.5 * (d - field) / k, 0.0, 1.0)
+        field = d * (1 - h) + field * h - k * h * (1 - h)
+    return _implicit(field, lin)
+
+
+def plate(holes: tuple[int, int] = (2, 3), resolution: int = 112) -> trimesh.Trimesh:
+    """A rounded plate with a grid of ``rows x cols`` round holes: genus ``rows * cols``."""
+    rows, cols = holes
+    lin = np.linspace(-1.3, 1.3, resolution)
+    x, y, z = np.meshgrid(lin, lin, lin, indexing="ij")
+    q = np.stack([np.abs(x) - 0.95, np.abs(y) - 0.95, np.abs(z) - 0.12])
+    slab = np.linalg.norm(np.maximum(q, 0), axis=0) + np.minimum(q.max(0), 0) - 0.08
+    centres = [(cx, cy) for cx in np.linspace(-0.55, 0.55, rows) for cy in np.linspace(-0.6, 0.6, cols)]
+    radius = 0.5 / max(rows, cols)
+    holes_f = np.min([np.hypot(x - cx, y - cy) - radius for cx, cy in centres], axis=0)
+    return _implicit(np.maximum(slab, -holes_f), lin)
+
+
 def bumpy(subdivisions: int = 6, amplitude: float = 0.04, frequency: float = 14.0) -> trimesh.Trimesh:
     """A sphere with fine relief: radius 1 + a sin(f x) sin(f y) sin(f z). The bumps are about
     1/f wide: fine detail at the scale of the F-score's 0.02 tolerance. Genus 0."""
@@ -127,8 +160,9 @@ def assembly(parts: int = 12, seed: int = 0) -> trimesh.Trimesh:
 
 
 SHAPES = {"sphere": sphere, "torus": torus, "genus2": genus2, "two_spheres": two_spheres, "sheet": sheet}
-#: shapes that are hard for a 3-chart fit (issue 18): handles, fine relief, thin limbs, many parts
-HARD_SHAPES = {"genus4": genus4, "bumpy": bumpy, "limbs": limbs, "assembly": assembly}
+#: shapes that are hard for a 3-chart fit (issue 18): handles (genus 3, 4, 6), fine relief, thin limbs, many parts
+HARD_SHAPES = {"genus4": genus4, "pretzel3": functools.partial(pretzel, 3), "plate6": functools.partial(plate, (2, 3)),
+               "bumpy": bumpy, "limbs": limbs, "assembly": assembly}
 
 
 def shape_file(name: str, folder: str | Path) -> Path:

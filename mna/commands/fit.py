@@ -13,7 +13,8 @@ def register(subparsers) -> None:
                               description="Fit a neural atlas of K charts to INPUT and write the run folder RUN.")
     p.add_argument("input", metavar="INPUT", help="mesh (.obj .ply .off .stl .glb) or point cloud (.ply .xyz .npy .npz)")
     p.add_argument("-o", "--out", required=True, metavar="RUN", help="run folder to write")
-    p.add_argument("--charts", type=int, default=None, help="number of charts K (default 3)")
+    p.add_argument("--charts", default=None, metavar="K|auto",
+                   help="number of charts K, or auto: from the mesh's genus (the fast preset's default)")
     p.add_argument("--preset", default="fast", help="fast (default), paper or tiny")
     p.add_argument("--config", default=None, metavar="YAML", help="start from a saved config.yaml instead of a preset")
     p.add_argument("--seed", type=int, default=None)
@@ -59,9 +60,7 @@ def build_config(args: argparse.Namespace):
     else:
         cfg = C.preset(args.preset)
     if args.charts is not None:
-        if args.resume and args.charts != cfg.model.charts:
-            raise MnaError(f"--charts {args.charts} differs from the run's {cfg.model.charts}; cannot resume")
-        cfg.model.charts = args.charts
+        set_charts(cfg, args.charts, args.resume)
     if args.seed is not None:
         cfg.seed = args.seed
     if args.device is not None:
@@ -85,6 +84,23 @@ def build_config(args: argparse.Namespace):
     if args.atlasnet:
         cfg.ablation.atlasnet = True
     return cfg.validate()
+
+
+def set_charts(cfg, value: str | int, resume: bool) -> None:
+    """``--charts K`` fixes K; ``--charts auto`` lets the input's topology choose it
+    (:mod:`mna.chart_count`). On --resume it must agree with the run's."""
+    if str(value) == "auto":
+        if resume and cfg.charts_rule != "topology":
+            raise MnaError(f"--charts auto differs from the run's fixed {cfg.model.charts} charts; cannot resume")
+        cfg.charts_rule = "topology"
+        return
+    try:
+        charts = int(value)
+    except (TypeError, ValueError):
+        raise MnaError(f"--charts must be an integer or auto, got {value!r}") from None
+    if resume and charts != cfg.model.charts:
+        raise MnaError(f"--charts {charts} differs from the run's {cfg.model.charts}; cannot resume")
+    cfg.model.charts, cfg.charts_rule = charts, "fixed"
 
 
 def run_fit(args: argparse.Namespace) -> int:
