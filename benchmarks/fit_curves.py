@@ -13,6 +13,7 @@ fit's result. Training time excludes the scoring.
 from __future__ import annotations
 
 import copy
+import json
 import time
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import torch
 
 from mna import config as C
 from mna import shapes
+from mna.chart_count import resolve_charts
 from mna.data import load_surface
 from mna.fit import Fitter
 from mna.inference import settle_c
@@ -45,20 +47,28 @@ def score(fitter: Fitter, reference: np.ndarray) -> dict:
     return {k: m[k] for k in ("fscore_mesh", "fscore_pcl", "chamfer_mesh", "distortion_metric", "occupancy_mean")}
 
 
-def curve(path: Path, steps: int, every: int, charts: int = 3, seed: int = 0, device: str = "cpu",
+def curve(path: Path, steps: int, every: int, charts: int | str = 3, seed: int = 0, device: str = "cpu",
           hard_targets: int | None = None, threads: int = 0) -> dict:
     """Fit ``path`` for ``steps`` steps, scoring every ``every``; the curve and the last score.
 
+    ``charts``: a number, ``auto`` (the input's topology decides, :mod:`mna.chart_count`) or
+    ``grow`` (start with the preset's and grow where coverage stalls, :mod:`mna.grow`);
     ``hard_targets``: None keeps the preset's; ``threads`` > 0 sets torch's CPU threads.
     """
     cfg = C.fast()
     cfg.steps, cfg.seed, cfg.device = steps, seed, device
-    cfg.model.charts = charts
+    surface = load_surface(path)
+    if charts == "auto":
+        cfg.charts_rule = "topology"
+        resolve_charts(cfg, surface)
+    elif charts == "grow":
+        cfg.charts_rule = "grow"
+    else:
+        cfg.model.charts, cfg.charts_rule = int(charts), "fixed"
     if hard_targets is not None:
         cfg.hard_targets = hard_targets
     if threads:
         torch.set_num_threads(threads)
-    surface = load_surface(path)
     reference = surface.sample(cfg.eval_points, np.random.default_rng(cfg.seed + 3))
     fitter = Fitter(cfg, surface, torch.device(device))
     points = []
@@ -69,10 +79,13 @@ def curve(path: Path, steps: int, every: int, charts: int = 3, seed: int = 0, de
             fitter.elapsed += time.perf_counter() - t0
             if fitter.step % every == 0 or fitter.done():
                 points.append({"step": fitter.step, "seconds": fitter.elapsed, **score(fitter, reference)})
-                print(f"  {path.stem} step {fitter.step}: F_mesh {points[-1]['fscore_mesh']:.2f}, "
+                points[-1]["charts"] = fitter.model.charts
+                print(f"  {path.stem} step {fitter.step} (K={fitter.model.charts}): "
+                      f"F_mesh {points[-1]['fscore_mesh']:.2f}, "
                       f"d_metric {points[-1]['distortion_metric']:.3f}, {fitter.elapsed:.0f} s", flush=True)
     faces = len(surface.mesh.faces) if surface.is_mesh else 0
-    return {"mesh": path.name, "faces": faces, "charts": charts, "steps": steps, "hard_targets": cfg.hard_targets,
+    return {"mesh": path.name, "faces": faces, "charts": cfg.model.charts, "rule": cfg.charts_rule, "steps": steps,
+            "hard_targets": cfg.hard_targets, "threads": torch.get_num_threads(),
             "sps": steps / max(fitter.elapsed, 1e-9), "wall": fitter.elapsed, "curve": points, **points[-1]}
 
 
@@ -101,14 +114,36 @@ def curves_figure(rows: list[dict], stem: Path) -> None:
     plt.close(fig)
 
 
+def row_name(stem: str, charts: int | str, hard_targets: int, steps: int) -> str:
+    """The cache file of one (shape, variant) row: variants run apart are reported together."""
+    return f"{stem}_k{charts}_h{hard_targets}_s{steps}.json"
+
+
+def save_row(folder: Path, row: dict, charts: int | str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / row_name(Path(row["mesh"]).stem, charts, row["hard_targets"], row["steps"])
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(row, default=float))
+    tmp.replace(path)
+    return path
+
+
+def load_rows(folder: Path) -> list[dict]:
+    """Every cached row, ordered by shape then variant."""
+    rows = [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))] if folder.is_dir() else []
+    return sorted(rows, key=lambda r: (r["mesh"], r["steps"], r["charts"], r["hard_targets"]))
+
+
 def table(rows: list[dict]) -> str:
-    head = ("| shape | faces | K | F_mesh | oracle F | gap | F_pcl | d_metric | occupancy % | steps | steps/s | "
-            "train s | F_mesh at 25 / 50 / 75 % of the steps |\n|" + "---|" * 13)
+    head = ("| shape | faces | K | hard targets | F_mesh | oracle F | gap | F_pcl | d_metric | occupancy % | steps | "
+            "steps/s | train s | F_mesh at 25 / 50 / 75 % of the steps |\n|" + "---|" * 14)
     lines = [head]
     for r in rows:
         c = r["curve"]
         marks = [min(c, key=lambda p, q=q: abs(p["step"] - q * r["steps"]))["fscore_mesh"] for q in (0.25, 0.5, 0.75)]
-        lines.append(f"| {r['mesh']} | {r['faces']} | {r['charts']} | {r['fscore_mesh']:.2f} | {r['oracle']:.2f} | "
+        k = f"{r['charts']} (auto)" if r.get("rule") == "topology" else str(r["charts"])
+        lines.append(f"| {r['mesh']} | {r['faces']} | {k} | {r.get('hard_targets', 0)} | {r['fscore_mesh']:.2f} | "
+                     f"{r['oracle']:.2f} | "
                      f"{r['oracle'] - r['fscore_mesh']:.2f} | {r['fscore_pcl']:.2f} | {r['distortion_metric']:.3f} | "
                      f"{r['occupancy_mean']:.1f} | {r['steps']} | {r['sps']:.2f} | {r['wall']:.0f} | "
                      f"{' / '.join(f'{m:.1f}' for m in marks)} |")

@@ -121,6 +121,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="hard shapes (genus 4, fine relief, thin limbs, many parts) as curves; see fit_curves.py")
     ap.add_argument("--steps", type=int, default=3000, help="--hard: steps per fit (default: the fast preset's 3000)")
     ap.add_argument("--curve-every", type=int, default=300, help="--hard: score every this many steps")
+    ap.add_argument("--charts", default="3", help="--hard: charts per fit, or auto (from the mesh's genus)")
+    ap.add_argument("--hard-targets", type=int, default=None, help="--hard: extra hard targets per step "
+                    "(default: the preset's)")
+    ap.add_argument("--threads", type=int, default=0, help="--hard: torch CPU threads (0 = torch's default)")
+    ap.add_argument("--report-only", action="store_true", help="--hard: report the cached rows, fit nothing")
     args = ap.parse_args(argv)
     if args.hard:
         return hard_main(args)
@@ -170,29 +175,40 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def hard_main(args) -> int:
-    """``--hard``: curves of F and distortion against steps on hard shapes; section fit_quality_hard."""
+    """``--hard``: curves of F and distortion against steps on hard shapes; section fit_quality_hard.
+
+    Each (shape, variant) row is cached under ``WORK/hard_rows``, so variants run at different
+    times (``--charts``, ``--hard-targets``) land in one table; ``--report-only`` fits nothing.
+    """
     import fit_curves
 
     only = {s for s in args.only.split(",") if s}
     paths = [p for p in fit_curves.hard_inputs(args.work, args.meshes) if not only or p.stem in only]
+    cache = args.work / "hard_rows"
     load = os.getloadavg()[0]
-    rows = []
-    for path in paths:
+    for path in [] if args.report_only else paths:
         oracle = oracle_fscore(path)
         print(f"{path.name}: oracle F {oracle:.2f}", flush=True)
-        rows.append({**fit_curves.curve(path, args.steps, args.curve_every, device=args.device), "oracle": oracle})
+        row = fit_curves.curve(path, args.steps, args.curve_every, charts=args.charts, device=args.device,
+                               hard_targets=args.hard_targets, threads=args.threads)
+        fit_curves.save_row(cache, {**row, "oracle": oracle, "load": load}, args.charts)
+    rows = fit_curves.load_rows(cache)
+    if not rows:
+        print("fit_quality --hard: no rows to report", file=sys.stderr)
+        return 2
     fig = (args.work if args.no_write else ROOT / "benchmarks") / "fit_quality_hard"
     fit_curves.curves_figure(rows, fig)
     cfg = C.fast()
     text = (
         "## fit_quality_hard\n\n"
-        f"`benchmarks/fit_quality.py --hard --steps {args.steps} --curve-every {args.curve_every}`: preset `fast` "
-        f"(width {cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart), 3 charts, seed 0, {args.steps} steps "
-        f"per shape, on {args.device} ({platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}, "
-        f"{torch.get_num_threads()} threads); load average at start {load:.1f}. Scores every {args.curve_every} "
-        "steps on a copy of the model with its own c (the same metrics as a finished run); train s excludes the "
-        "scoring. Oracle F = two independent 25,000-point samples of the input surface. Curves: "
-        "`benchmarks/fit_quality_hard.png`.\n\n" + fit_curves.table(rows) + "\n"
+        "`benchmarks/fit_quality.py --hard --steps N --curve-every M [--charts K|auto] [--hard-targets H] "
+        f"[--threads T]`: preset `fast` (width {cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart, "
+        f"{cfg.targets} uniform targets/step), seed 0, on {args.device} ({platform.machine()}, {os.cpu_count()} cores, "
+        f"torch {torch.__version__}). One row per shape and variant (K charts, `(auto)`: chosen by "
+        "`mna.chart_count` from the mesh's genus; hard targets: extra targets per step where the charts err most, "
+        "`mna.hard_targets`). Scores every M steps on a copy of the model with its own c (the same metrics as a "
+        "finished run); train s excludes the scoring. Oracle F = two independent 25,000-point samples of the input "
+        "surface. Curves: `benchmarks/fit_quality_hard.png`.\n\n" + fit_curves.table(rows) + "\n"
     )
     print(text)
     if not args.no_write:

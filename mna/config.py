@@ -130,7 +130,11 @@ class FitConfig(AtlasSettings):
     """Target surface points per step (drawn fresh from a mesh every step)."""
     charts_rule: str = "fixed"
     """``fixed``: ``model.charts`` as given; ``topology``: chosen from the input mesh's genus
-    (:mod:`mna.chart_count`) when the fit starts, and saved resolved in ``model.charts``."""
+    (:mod:`mna.chart_count`) when the fit starts, and saved resolved in ``model.charts``;
+    ``grow``: start with ``model.charts`` and add one where a gap in the charts' coverage
+    stops closing (:mod:`mna.grow`), up to ``max_charts``; ``model.charts`` is saved as grown."""
+    max_charts: int = 6
+    """Cap of the ``grow`` rule."""
     hard_targets: int = 0
     """Extra targets per step drawn where the fit errs most (:mod:`mna.hard_targets`); they
     pull on the charts but do not label occupancy. 0 = off (the paper)."""
@@ -165,6 +169,7 @@ class FitConfig(AtlasSettings):
             check_int(getattr(self, name), name, 1)
         check_int(self.hard_targets, "hard_targets", 0)
         check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
+        check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
         if not isinstance(self.preset, str):
@@ -189,7 +194,7 @@ MAX_TIME_BUDGET = 3.2e8
 #: positional-encoding octaves: 2^octaves multiplies coordinates in [-1, 1] (float32 keeps 24 bits)
 MAX_OCTAVES = 16
 DEVICES = ("auto", "cpu", "cuda")
-CHARTS_RULES = ("fixed", "topology")
+CHARTS_RULES = ("fixed", "topology", "grow")
 
 
 def check_int(value, name: str, low: int, high: int | None = None) -> int:

@@ -15,7 +15,8 @@ import torch
 
 from mna.config import FitConfig
 from mna.data import Surface
-from mna.hard_targets import HardTargets
+from mna.grow import Growth, add_chart
+from mna.hard_targets import ErrorMap, HardTargets
 from mna.inference import uniform_uv
 from mna.interrupt import graceful_stop
 from mna.model import NeuralAtlas, flush_denormals
@@ -60,7 +61,10 @@ class Fitter:
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=cfg.lr)
         self.generator = torch.Generator().manual_seed(cfg.seed)
         self.rng = np.random.default_rng(cfg.seed)
-        self.hard = HardTargets(surface, cfg.hard_targets, cfg.targets) if cfg.hard_targets else None
+        growing = cfg.charts_rule == "grow"
+        self.errors = ErrorMap(surface, cfg.targets) if cfg.hard_targets or growing else None
+        self.hard = HardTargets(self.errors, cfg.hard_targets) if cfg.hard_targets else None
+        self.growth = Growth(cfg.max_charts) if growing else None
         self.step = 0
         self.elapsed = 0.0
         self.stop_signal: int | None = None
@@ -88,13 +92,17 @@ class Fitter:
         targets = torch.from_numpy(pts).float().to(dev)
         normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
         terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets)
-        if self.hard is not None:
-            self.hard.record(elements, terms.distance[0].cpu().numpy())
+        if self.errors is not None:
+            self.errors.record(elements, terms.distance[0].cpu().numpy())
         total = terms.total
         self.optimizer.zero_grad(set_to_none=True)
         total.backward()
         self.optimizer.step()
         self.step += 1
+        if self.growth is not None:
+            center = self.growth.due(self.step, self.progress(), model.charts, self.errors)
+            if center is not None:
+                self.model, self.optimizer = add_chart(model, self.optimizer, cfg, center)
         return StepLosses(total.item(), terms.rec.item(), terms.occ.item(), terms.dist.item(), terms.positives,
                           float(terms.orient.item()) if terms.orient is not None else 0.0)
 
@@ -107,18 +115,27 @@ class Fitter:
             "elapsed": self.elapsed,
             "torch_rng": self.generator.get_state(),
             "numpy_rng": self.rng.bit_generator.state,
-            **({"hard_targets": self.hard.state_dict()} if self.hard is not None else {}),
+            **({"errors": self.errors.state_dict()} if self.errors is not None else {}),
+            **({"growth": self.growth.state_dict()} if self.growth is not None else {}),
         }
 
     def load_state_dict(self, state: dict) -> None:
+        charts = state["model"]["chart.out.b"].shape[0]
+        if charts != self.model.charts and self.growth is not None:
+            # the fit grew charts before it was saved: rebuild at that size, then load
+            self.cfg.model.charts = charts
+            self.model = NeuralAtlas.from_config(self.cfg.model, self.cfg.ablation).to(self.device)
+            self.optimizer = torch.optim.Adam(self.model.parameters(), lr=self.cfg.lr)
         self.model.load_state_dict(state["model"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.step = int(state["step"])
         self.elapsed = float(state["elapsed"])
         self.generator.set_state(state["torch_rng"])
         self.rng.bit_generator.state = state["numpy_rng"]
-        if self.hard is not None and "hard_targets" in state:
-            self.hard.load_state_dict(state["hard_targets"])
+        if self.errors is not None and "errors" in state:
+            self.errors.load_state_dict(state["errors"])
+        if self.growth is not None and "growth" in state:
+            self.growth.load_state_dict(state["growth"])
 
     # -- the loop --------------------------------------------------------------------------
     def run(self, on_checkpoint: Callable[["Fitter"], None], callback: Callable[[int], bool] | None = None,

@@ -48,37 +48,46 @@ def cell_labels(centers: np.ndarray, wanted: int) -> np.ndarray:
     return labels.reshape(-1)
 
 
-class HardTargets:
-    """Draws ``count`` extra targets per step in proportion to each cell's running error."""
+class ErrorMap:
+    """Running distance from the surface to the charts, per cell of a grid over the surface.
 
-    def __init__(self, surface: Surface, count: int, cells: int):
-        self.surface, self.count = surface, count
+    Fed every step with the targets' distances to their nearest chart sample; read by the
+    hard-target draw (where to pull harder) and by chart growth (:mod:`mna.grow`: where the
+    charts leave a gap)."""
+
+    def __init__(self, surface: Surface, cells: int):
+        self.surface = surface
         self.cell_of = cell_labels(surface.element_centers, cells)
-        self.error = np.zeros(int(self.cell_of.max()) + 1)
+        n = int(self.cell_of.max()) + 1
+        weight = surface.face_areas if surface.is_mesh else np.ones(surface.element_count)
+        self.area = np.bincount(self.cell_of, weights=weight, minlength=n)
+        """each cell's share of the surface (mesh area, or point count for a cloud), summing to 1."""
+        self.area /= self.area.sum()
+        counts = np.bincount(self.cell_of, weights=weight, minlength=n)[:, None]
+        self.center = np.stack([np.bincount(self.cell_of, weights=weight * c, minlength=n)
+                                for c in surface.element_centers.T], 1) / np.maximum(counts, 1e-300)
+        """(cells, 3) area-weighted centre of each cell (unit-ball frame)."""
+        self.error = np.zeros(n)
         """running mean distance (unit ball) from a cell's targets to their nearest chart sample."""
-        self.seen = np.zeros(len(self.error), dtype=bool)
-
-    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        """Points, normals and elements of the extra targets; area-uniform until an error is known."""
-        if not self.seen.any():
-            return self.surface.sample_elements(self.count, rng)
-        # cells never observed yet count as the mean observed error: no region is starved
-        err = np.where(self.seen, self.error, self.error[self.seen].mean())
-        weight = err[self.cell_of]
-        if not weight.sum() > 0:
-            return self.surface.sample_elements(self.count, rng)
-        return self.surface.sample_elements(self.count, rng, weight=weight)
+        self.seen = np.zeros(n, dtype=bool)
 
     def record(self, elements: np.ndarray, distance: np.ndarray) -> None:
         """Update the cells of ``elements`` with their targets' ``distance`` to the charts."""
+        n = len(self.error)
         cells = self.cell_of[elements]
-        total = np.bincount(cells, weights=distance, minlength=len(self.error))
-        hits = np.bincount(cells, minlength=len(self.error))
+        total = np.bincount(cells, weights=distance, minlength=n)
+        hits = np.bincount(cells, minlength=n)
         hit = hits > 0
         mean = total[hit] / hits[hit]
         old = self.error[hit]
         self.error[hit] = np.where(self.seen[hit], (1 - EMA) * old + EMA * mean, mean)
         self.seen |= hit
+
+    def filled(self) -> np.ndarray:
+        """The errors, cells never observed counting as the mean observed error (none starved)."""
+        if not self.seen.any():
+            return np.zeros_like(self.error)
+        return np.where(self.seen, self.error, self.error[self.seen].mean())
 
     def state_dict(self) -> dict:
         # tensors, so a checkpoint stays loadable with torch.load(weights_only=True)
@@ -87,3 +96,18 @@ class HardTargets:
     def load_state_dict(self, state: dict) -> None:
         self.error = state["error"].numpy().astype(np.float64)
         self.seen = state["seen"].numpy().astype(bool)
+
+
+class HardTargets:
+    """Draws ``count`` extra targets per step in proportion to each cell's running error."""
+
+    def __init__(self, errors: ErrorMap, count: int):
+        self.errors, self.count = errors, count
+
+    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Points, normals and elements of the extra targets; area-uniform until an error is known."""
+        surface = self.errors.surface
+        weight = self.errors.filled()[self.errors.cell_of]
+        if not weight.sum() > 0:
+            return surface.sample_elements(self.count, rng)
+        return surface.sample_elements(self.count, rng, weight=weight)

@@ -142,7 +142,16 @@ def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input
     log(f"fitting {Path(input_path).name} ({'mesh' if surface.is_mesh else 'point cloud'}) with "
         f"{cfg.model.charts} chart(s), preset {cfg.preset}, device {device}")
     t0 = time.perf_counter()
-    interrupted = fitter.run(lambda f: save_checkpoint(out, f, surface.normalization), callback, progress_bar)
+    saved_charts = cfg.model.charts
+
+    def checkpoint(f: Fitter) -> None:
+        nonlocal saved_charts
+        save_checkpoint(out, f, surface.normalization)
+        if cfg.model.charts != saved_charts:  # a chart grew (mna.grow): config.yaml says how many now
+            config_mod.save_yaml(out / CONFIG, run_config_dict(cfg, str(input_path)))
+            saved_charts = cfg.model.charts
+
+    interrupted = fitter.run(checkpoint, callback, progress_bar)
     fit_seconds = time.perf_counter() - t0
     if interrupted:
         log(f"interrupted at step {fitter.step}; checkpoint saved to {out / CHECKPOINT} (continue with --resume)")
