@@ -10,9 +10,11 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
 1. **Turns** (:data:`PACK_MODES`). xatlas's own ``rotate_charts_to_axis`` turns each island
    to an axis of its own choosing; turning every island to its minimum-area bounding
    rectangle here (a rotation: an isometry, never a mirror; distortion and texel density do
-   not change) and switching xatlas's turn off packed tighter on four of six fits (bob
-   0.51 -> 0.57, eight 0.44 -> 0.50) and looser on the others (spot 0.42 -> 0.36). So the
-   islands are packed in every mode and the best is kept.
+   not change) and switching xatlas's turn off packed tighter in coarse plans on four of six
+   fits (bob 0.51 -> 0.57, eight 0.44 -> 0.50) and looser on the others (spot 0.42 -> 0.36);
+   once its mirrored islands were turned back, it won only on the eight uncut (0.50), but
+   it won four of the six halving rounds. So every layout is packed in several modes and
+   the best is kept.
 2. **Halvings** (:func:`texture.unwrap_islands.halve_across`), only while no layout reaches
    ``cfg.pack_target``: one of the ``PACK_CUT_ISLANDS`` largest islands cut in two along mesh
    edges (UVs kept, so flips, overlap and distortion do not change), across or along its
@@ -22,8 +24,8 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
 
 Every candidate (halving x mode) is first packed once into an unbounded atlas
 (:func:`texture.scale_search.estimate_layouts`, one xatlas call); only the
-``PACK_SEARCHED`` best guesses are searched (on the benchmark fits the guess's top three
-held the best search in five of six rounds, and a search costs about ten guesses).
+``PACK_SEARCHED`` best guesses are searched and packed (on the benchmark fits the guess's
+top three held the best search in five of six rounds, and a search costs about ten guesses).
 """
 from __future__ import annotations
 
@@ -116,18 +118,31 @@ class _Packed:
         return self.packing.utilization
 
 
-def _packed(layouts: list[list[Island]], modes: list[int], cfg) -> list[_Packed]:
-    """Each (islands, mode index) pair packed for real (:func:`texture.pack.pack_islands` from
-    its coarse plan). The coarse plan's utilisation is not the packing's: xatlas's
-    90-degree turns mirror islands, and keeping them the right way round costs up to 0.07
-    (bob: 0.574 coarse, 0.508 packed), so the layouts are compared packed."""
-    out = []
+def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, floor: float = 0.0) -> _Packed | None:
+    """The best of the (islands, mode index) pairs packed for real (:func:`texture.pack.pack_islands`
+    from its coarse plan), or None if none packs above ``floor``.
+
+    The coarse plan's utilisation is not the packing's: xatlas's 90-degree turns mirror
+    islands, and keeping them the right way round cost up to 0.07 (bob: 0.574 coarse, 0.508
+    packed), so the layouts are compared packed. Keeping islands unmirrored only lowers a
+    plan's utilisation, so plans are packed best first, and those whose coarse utilisation
+    cannot beat ``floor`` or the best packing so far are not packed (each packing costs
+    several coarse searches)."""
+    kw = {"resolution": cfg.resolution, "padding": cfg.padding}
+    plans = []
     for layout, m in zip(layouts, modes):
         arrays = island_arrays(turned(layout, PACK_MODES[m]))
-        kw = {"resolution": cfg.resolution, "padding": cfg.padding}
         plan = plan_layouts([arrays], candidates=(PACK_MODES[m][1],), **kw)[0]
-        out.append(_Packed(layout, m, pack_islands(*arrays, plan=plan, **kw)))
-    return out
+        if plan is not None:
+            plans.append((plan, arrays, layout, m))
+    best = None
+    for plan, arrays, layout, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
+        if plan.utilization <= max(floor, best.utilization if best is not None else 0.0):
+            break
+        got = _Packed(layout, m, pack_islands(*arrays, plan=plan, **kw))
+        if best is None or got.utilization > best.utilization:
+            best = got
+    return best
 
 
 def _halvings(islands: list[Island], comp: np.ndarray, cfg) -> list[tuple[list[Island], dict]]:
@@ -147,8 +162,8 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg) -> list[tuple[list[I
     return out
 
 
-def _best_halving(islands: list[Island], comp: np.ndarray, cfg) -> tuple[_Packed, dict] | None:
-    """The best halving this round, packed, and its description; None if there is none."""
+def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float) -> tuple[_Packed, dict] | None:
+    """The best halving this round, packed, and its description; None if none packs above ``floor``."""
     cands = _halvings(islands, comp, cfg)
     if not cands:
         return None
@@ -160,21 +175,24 @@ def _best_halving(islands: list[Island], comp: np.ndarray, cfg) -> tuple[_Packed
         guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
     top = guesses[:PACK_SEARCHED]
-    found = _packed([cands[i][0] for _, i, _ in top], [m for _, _, m in top], cfg)
-    k = int(np.argmax([f.utilization for f in found]))
-    return found[k], cands[top[k][1]][1]
+    best = _best_packed([cands[i][0] for _, i, _ in top], [m for _, _, m in top], cfg, floor)
+    if best is None:
+        return None
+    return best, next(d for c, d in cands if c is best.islands)
 
 
 def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
     connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig`."""
-    modes = _packed([islands] * len(PACK_MODES), list(range(len(PACK_MODES))), cfg)
-    stats = {"utilization_modes": [m.utilization for m in modes], "halvings": []}
-    best = max(modes, key=lambda m: m.utilization)  # the first on a tie
+    best = _best_packed([islands] * len(PACK_MODES), list(range(len(PACK_MODES))), cfg)
+    if best is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
+        return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
+                                                  padding=cfg.padding), {"mode": 0, "halvings": []})
+    stats = {"utilization_uncut": best.utilization, "halvings": []}
     for _ in range(cfg.pack_max_cuts):
         if best.utilization >= cfg.pack_target:
             break
-        got = _best_halving(best.islands, comp, cfg)
+        got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_cut_gain)
         if got is None or got[0].utilization < best.utilization + cfg.pack_cut_gain:
             break
         best = got[0]
