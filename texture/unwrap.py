@@ -19,7 +19,9 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
    island's flips and boundary crossings are counted afterwards.
 6. ``split``: islands above ``target_distortion`` halved and re-flattened; islands too long
    to pack densely halved across their length, UVs kept (:mod:`texture.unwrap_islands`).
-7. ``pack``: :func:`texture.pack.pack_islands` at ``resolution`` and ``padding``.
+7. ``pack``: the islands turned (and, below ``pack_target``, halved) as packs best
+   (:func:`texture.unwrap_layout.choose_layout`), then :func:`texture.pack.pack_islands` at
+   ``resolution`` and ``padding`` (the search compares real packings).
 
 Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
 the same corner order, in the input frame; output vertex = one per distinct (input
@@ -41,7 +43,6 @@ from mnacore.uvmesh import UVMesh, weld_ids
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .meshprep import prepare_mesh
-from .pack import pack_islands
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
 from .unwrap_islands import (
     WHOLE,
@@ -54,6 +55,7 @@ from .unwrap_islands import (
     split_long_islands,
     whole_components,
 )
+from .unwrap_layout import choose_layout
 
 
 @dataclass
@@ -97,7 +99,14 @@ class UnwrapConfig:
     long_max_splits: int = 4
     """Most such halvings (0 = off)."""
     long_max_islands: int = 8
-    """No such halving gives a connected component more islands than this."""
+    """No such halving (nor a packing halving) gives a connected component more islands than this."""
+    pack_target: float = 0.6
+    """Islands are halved for packing (:mod:`texture.unwrap_layout`) only while no layout packs
+    this utilisation (coarse)."""
+    pack_cut_gain: float = 0.02
+    """A packing halving adds seam: kept only when it gains this much utilisation (coarse)."""
+    pack_max_cuts: int = 2
+    """Most packing halvings (0 = only the islands' turns are searched)."""
 
 
 @dataclass
@@ -187,21 +196,20 @@ def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig) -> tuple[list, dict, di
     return islands, fstats, t
 
 
-def _packed(islands: list, cfg: UnwrapConfig):
-    """(packing, vertex offset of each island, islands reflected): every island counter-clockwise
-    like the input's winding (no island mirrored as seen from outside; one whose faces all
-    turned clockwise is reflected in u), then packed."""
+def _packed(islands: list, comp: np.ndarray, cfg: UnwrapConfig):
+    """(packing, islands as packed, vertex offset of each island, islands reflected, layout
+    search stats): every island counter-clockwise like the input's winding (no island mirrored
+    as seen from outside; one whose faces all turned clockwise is reflected in u), then turned
+    and halved as packs best (:func:`texture.unwrap_layout.choose_layout`: rotations and cuts
+    along edges only, never a mirror), then packed."""
     mirrored = 0
     for isl in islands:
         if signed_areas(isl.uv, isl.faces).sum() < 0:
             isl.uv = isl.uv * np.array([-1.0, 1.0])
             mirrored += 1
-    offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
-    all_uv = np.concatenate([isl.uv for isl in islands])
-    all_faces = np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)])
-    all_island = np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands])
-    packing = pack_islands(all_uv, all_faces, all_island, resolution=cfg.resolution, padding=cfg.padding)
-    return packing, offsets, mirrored  # the packer never mirrors an island (texture.pack)
+    choice = choose_layout(islands, comp, cfg)
+    offsets = np.cumsum([0] + [len(isl.uv) for isl in choice.islands])
+    return choice.packing, choice.islands, offsets, mirrored, choice.stats  # the packer never mirrors an island (texture.pack)
 
 
 def _pack_stats(packing) -> dict:
@@ -250,7 +258,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t["split"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    packing, offsets, mirrored = _packed(islands, cfg)
+    packing, islands, offsets, mirrored, layout_stats = _packed(islands, prep.component, cfg)
     t["pack"] = time.perf_counter() - t0
     mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)
     total = float(area.sum())
@@ -259,6 +267,6 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
                   "fallback_area_fraction": float(area[fallback].sum() / total)}
     stats = {"prepare": prep.stats, "assignment": assignment, "regions": clean_stats, "islands": len(islands),
              "flatten": fstats, "relax": relax_stats, "slits": slit_stats, "splits": split_stats,
-             "pack": _pack_stats(packing), **out_stats, "islands_reflected": mirrored, "config": asdict(cfg),
+             "pack": {**_pack_stats(packing), "layout": layout_stats}, **out_stats, "islands_reflected": mirrored, "config": asdict(cfg),
              "timings": t}
     return Unwrap(mesh, face_island, stats)

@@ -333,21 +333,26 @@ def _connected(faces: np.ndarray) -> bool:
 LONG_CUTS = np.linspace(0.3, 0.7, 9)
 
 
-def halve_across(isl: Island) -> list[Island] | None:
-    """The island cut in two across its principal UV axis, at the position (among ``LONG_CUTS``)
-    with the shortest cut (3D length; ties: the more even halves) whose two halves are each
-    one piece; None if none is.
-    The halves keep their UVs: parts of a flip-free, overlap-free island stay so."""
+def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS) -> tuple[list[Island], float] | None:
+    """(the island cut in two, the cut's 3D length), or None where no cut works.
+
+    The cut runs across the island's principal UV axis (``along``: along it, i.e. across the
+    minor axis), along mesh edges, at the position (among ``cuts``: the fraction of the
+    island's 3D area before the cut) with the shortest cut (ties: the more even halves) whose
+    two halves are each one piece. The halves keep their UVs: parts of a flip-free,
+    overlap-free island stay so, and the input's faces are not changed (an unwrap may only
+    cut along edges)."""
     from .regions import face_adjacency
 
-    _, axis = _principal_extent(isl.uv)
+    d = isl.uv - isl.uv.mean(0)
+    axis = np.linalg.eigh(d.T @ d)[1][:, 0 if along else -1]
     s = isl.uv[isl.faces].mean(1) @ axis
     area = triangle_areas(isl.xyz, isl.faces)
     order = np.argsort(s, kind="stable")
     cum = np.cumsum(area[order]) / area.sum()
     adj = face_adjacency(isl.xyz, isl.faces)
     best = None
-    for q in sorted(LONG_CUTS, key=lambda q: abs(q - 0.5)):  # equal cuts: the more even one
+    for q in sorted(cuts, key=lambda q: abs(q - 0.5)):  # equal cuts: the more even one
         lo = np.zeros(len(isl.faces), bool)
         lo[order[:int(np.searchsorted(cum, q)) + 1]] = True
         if lo.all():
@@ -360,7 +365,7 @@ def halve_across(isl: Island) -> list[Island] | None:
             best = (cut, a, b)
     if best is None:
         return None
-    return [_sub_island(isl, best[1]), _sub_island(isl, best[2])]
+    return [_sub_island(isl, best[1]), _sub_island(isl, best[2])], best[0]
 
 
 def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[list[Island], dict]:
@@ -387,11 +392,11 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
         c = int(comp[islands[k].work_faces[0]])
         if length[k] <= side or per_comp[c] >= cfg.long_max_islands:
             break
-        halves = halve_across(islands[k])
-        if halves is None:
+        halved = halve_across(islands[k])
+        if halved is None:
             skip.add(id(islands[k]))
             continue
-        islands = islands[:k] + islands[k + 1:] + halves
+        islands = islands[:k] + islands[k + 1:] + halved[0]
         per_comp[c] += 1
         st["long_islands_split"] += 1
     st["atlas_side"] = side

@@ -1,0 +1,72 @@
+"""The unwrap's packing search (:mod:`texture.unwrap_layout`): turns and halvings."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mnacore.triangles import signed_areas
+from texture.unwrap import UnwrapConfig
+from texture.unwrap_islands import Island
+from texture.unwrap_layout import choose_layout, island_arrays, min_rect_rotation
+from texture.verify import verify_packing
+
+
+def _grid_island(nx: int, ny: int, cell: float = 1.0) -> Island:
+    """A flat nx-by-ny grid of ``cell``-sized cells (UV = xy, isometric), counter-clockwise."""
+    x, y = np.meshgrid(np.arange(nx + 1) * cell, np.arange(ny + 1) * cell, indexing="xy")
+    uv = np.column_stack([x.ravel(), y.ravel()])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="xy")
+    a = (j * (nx + 1) + i).ravel()
+    faces = np.concatenate([np.column_stack([a, a + 1, a + nx + 2]), np.column_stack([a, a + nx + 2, a + nx + 1])])
+    return Island(faces, uv, np.column_stack([uv, np.zeros(len(uv))]), np.arange(len(faces)), np.arange(len(uv)), 0)
+
+
+def test_min_rect_rotation_turns_a_tilted_rectangle_to_the_axes_without_mirroring():
+    """A 4 x 1 rectangle tilted by 30 degrees: after the turn its bounding box is the
+    rectangle itself (area 4, not the tilted box's 11.4), long side along u, det +1."""
+    t = np.radians(30)
+    rot = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    uv = _grid_island(8, 2, 0.5).uv @ rot.T
+    r = min_rect_rotation(uv)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    assert np.ptp(uv, 0).prod() == pytest.approx(11.36, abs=0.01)
+    ext = np.ptp(uv @ r.T, 0)
+    assert ext == pytest.approx([4.0, 1.0], abs=1e-9)
+    assert np.array_equal(min_rect_rotation(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]])), np.eye(2))
+
+
+def test_a_long_strip_is_halved_for_packing_keeping_one_scale_and_no_mirror():
+    """One 4 x 1 island packs at about a quarter of a square; halved across its length, its
+    two 2 x 1 halves fill most of it. The halves keep their UVs up to a rotation and one shared
+    scale (every packed edge has the same length ratio to its 3D length), run counter-clockwise,
+    and do not overlap."""
+    strip = _grid_island(16, 4, 0.25)
+    comp = np.zeros(len(strip.faces), np.int64)
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    plain = choose_layout([strip], comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=0))
+    got = choose_layout([strip], comp, cfg)
+    assert len(plain.islands) == 1 and plain.packing.utilization < 0.27
+    assert len(got.islands) == 2 and got.packing.utilization > 0.6
+    assert got.stats["halvings"][0]["cut_length"] == pytest.approx(1.0)
+    uv, faces, island = island_arrays(got.islands)
+    px = got.packing.uv
+    xyz = np.concatenate([isl.xyz for isl in got.islands])
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
+    ratio = np.linalg.norm(px[e[:, 0]] - px[e[:, 1]], axis=1) / np.linalg.norm(xyz[e[:, 0]] - xyz[e[:, 1]], axis=1)
+    assert ratio == pytest.approx(np.full(len(ratio), ratio[0]), rel=1e-9)  # one texel density, rigid
+    assert (signed_areas(px, faces) > 0).all()  # never mirrored
+    assert verify_packing(px, faces, island, 512)[0] == 0
+    work = np.sort(np.concatenate([isl.work_faces for isl in got.islands]))
+    assert np.array_equal(work, np.arange(len(strip.faces)))  # every face once, none added
+
+
+def test_no_halving_at_the_target_or_past_the_island_cap():
+    """A layout that already packs ``pack_target`` is not cut (a cut adds seam), nor is a
+    component that holds ``long_max_islands`` islands."""
+    square = _grid_island(4, 4, 0.25)
+    comp = np.zeros(len(square.faces), np.int64)
+    got = choose_layout([square], comp, UnwrapConfig(resolution=512, padding=4))
+    assert len(got.islands) == 1 and got.packing.utilization > 0.6 and got.stats["halvings"] == []
+    strip = _grid_island(16, 4, 0.25)
+    capped = choose_layout([strip], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=1))
+    assert len(capped.islands) == 1 and capped.stats["halvings"] == []

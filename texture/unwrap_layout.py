@@ -1,0 +1,201 @@
+"""The unwrap's packing search: which way to turn the islands, and which to halve, before packing.
+
+The unwrap's islands are few and large (2-8 on a single-part mesh), and relaxed islands are
+round blobs: their minimum-area bounding rectangles are only 55-75 % full. With so few
+islands xatlas cannot fill the gaps, so utilisation is set by the islands' shapes and turns
+(0.40-0.56 on the benchmark fits with the islands packed as they came). Two things help,
+and which one, and where, is not predictable from the shapes, so layouts are *packed* to be
+compared (as the export's cut rounds do, :mod:`texture.layout_search`):
+
+1. **Turns** (:data:`PACK_MODES`). xatlas's own ``rotate_charts_to_axis`` turns each island
+   to an axis of its own choosing; turning every island to its minimum-area bounding
+   rectangle here (a rotation: an isometry, never a mirror; distortion and texel density do
+   not change) and switching xatlas's turn off packed tighter in coarse plans on four of six
+   fits (bob 0.51 -> 0.57, eight 0.44 -> 0.50) and looser on the others (spot 0.42 -> 0.36);
+   once its mirrored islands were turned back, it won only on the eight uncut (0.50), but
+   it won four of the six halving rounds. So every layout is packed in several modes and
+   the best is kept.
+2. **Halvings** (:func:`texture.unwrap_islands.halve_across`), only while no layout reaches
+   ``cfg.pack_target``: one of the ``PACK_CUT_ISLANDS`` largest islands cut in two along mesh
+   edges (UVs kept, so flips, overlap and distortion do not change), across or along its
+   principal axis, in the middle or a quarter off one end. A halving adds seam, so it is kept
+   only when it gains ``cfg.pack_cut_gain``, at most ``cfg.pack_max_cuts`` of them, and never
+   more than ``cfg.long_max_islands`` islands per connected component.
+
+Every candidate (halving x mode) is first packed once into an unbounded atlas
+(:func:`texture.scale_search.estimate_layouts`, one xatlas call); only the
+``PACK_SEARCHED`` best guesses are searched and packed (on the benchmark fits the guess's
+top three held the best search in five of six rounds, and a search costs about ten guesses).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from mnacore.triangles import triangle_areas
+
+from .pack import Packing, pack_islands
+from .scale_search import estimate_layouts, plan_layouts
+from .unwrap_islands import LONG_CUTS, Island, halve_across
+
+#: (turn every island to its minimum-area bounding rectangle first, xatlas PackOptions)
+PACK_MODES: tuple[tuple[bool, dict], ...] = (
+    (False, {}),
+    (False, {"rotate_charts": False}),
+    (True, {"rotate_charts_to_axis": False}),
+)
+#: cut positions (fraction of the island's area before the cut) of each halving tried:
+#: the middle, a quarter off the low end, a quarter off the high end
+PACK_CUTS = (LONG_CUTS, np.linspace(0.15, 0.3, 4), np.linspace(0.7, 0.85, 4))
+#: modes a halving is packed in: turning to the minimum-area rectangle won four of six halving
+#: rounds on the benchmark fits, xatlas's own turns the others; without turns none
+HALVING_MODES = (0, 2)
+#: the largest islands (3D area) whose halvings are tried
+PACK_CUT_ISLANDS = 3
+#: candidates searched per round, best first guess first
+PACK_SEARCHED = 3
+
+
+def min_rect_rotation(uv: np.ndarray) -> np.ndarray:
+    """(2, 2) rotation (det +1) that turns ``uv``'s minimum-area bounding rectangle to the
+    axes, long side along u. The rectangle has a side on the convex hull (rotating calipers:
+    every hull edge's direction is tried). Identity where the hull is degenerate."""
+    try:
+        hull = uv[ConvexHull(uv).vertices]
+    except (QhullError, ValueError):
+        return np.eye(2)
+    edge = np.roll(hull, -1, axis=0) - hull
+    edge = edge[np.linalg.norm(edge, axis=1) > 0]
+    e = edge / np.linalg.norm(edge, axis=1)[:, None]
+    n = np.column_stack([-e[:, 1], e[:, 0]])
+    w = np.ptp(hull @ e.T, axis=0)
+    h = np.ptp(hull @ n.T, axis=0)
+    k = int(np.argmin(w * h))
+    r = np.array([e[k], n[k]])  # rows: the new u and v axes; det = |e|^2 = 1
+    return r if w[k] >= h[k] else np.array([n[k], -e[k]])
+
+
+def turned(islands: list[Island], mode: tuple[bool, dict]) -> list[Island]:
+    """The islands as packed in ``mode`` (rotated about their UV centroid, or as they are)."""
+    if not mode[0]:
+        return islands
+    out = []
+    for isl in islands:
+        c = isl.uv.mean(0)
+        out.append(replace(isl, uv=(isl.uv - c) @ min_rect_rotation(isl.uv).T + c))
+    return out
+
+
+def island_arrays(islands: list[Island]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(uv, faces, island): the islands as one split-vertex UV mesh, as the packer takes it."""
+    offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
+    return (np.concatenate([isl.uv for isl in islands]),
+            np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)]),
+            np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands]))
+
+
+@dataclass
+class LayoutChoice:
+    """The islands to pack (turned and halved), their packing, and what the search did."""
+
+    islands: list[Island]
+    packing: Packing
+    stats: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Packed:
+    """One layout packed in one mode."""
+
+    islands: list[Island]
+    mode: int
+    packing: Packing
+
+    @property
+    def utilization(self) -> float:
+        return self.packing.utilization
+
+
+def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, floor: float = 0.0) -> _Packed | None:
+    """The best of the (islands, mode index) pairs packed for real (:func:`texture.pack.pack_islands`
+    from its coarse plan), or None if none packs above ``floor``.
+
+    The coarse plan's utilisation is not the packing's: xatlas's 90-degree turns mirror
+    islands, and keeping them the right way round cost up to 0.07 (bob: 0.574 coarse, 0.508
+    packed), so the layouts are compared packed. Keeping islands unmirrored only lowers a
+    plan's utilisation, so plans are packed best first, and those whose coarse utilisation
+    cannot beat ``floor`` or the best packing so far are not packed (each packing costs
+    several coarse searches)."""
+    kw = {"resolution": cfg.resolution, "padding": cfg.padding}
+    plans = []
+    for layout, m in zip(layouts, modes):
+        arrays = island_arrays(turned(layout, PACK_MODES[m]))
+        plan = plan_layouts([arrays], candidates=(PACK_MODES[m][1],), **kw)[0]
+        if plan is not None:
+            plans.append((plan, arrays, layout, m))
+    best = None
+    for plan, arrays, layout, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
+        if plan.utilization <= max(floor, best.utilization if best is not None else 0.0):
+            break
+        got = _Packed(layout, m, pack_islands(*arrays, plan=plan, **kw))
+        if best is None or got.utilization > best.utilization:
+            best = got
+    return best
+
+
+def _halvings(islands: list[Island], comp: np.ndarray, cfg) -> list[tuple[list[Island], dict]]:
+    """Every halving tried this round: (islands after it, its description)."""
+    per_comp = np.bincount([int(comp[i.work_faces[0]]) for i in islands], minlength=int(comp.max()) + 1)
+    area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
+    out = []
+    for rank, k in enumerate(np.argsort(area, kind="stable")[::-1][:PACK_CUT_ISLANDS]):
+        if per_comp[int(comp[islands[k].work_faces[0]])] >= cfg.long_max_islands:
+            continue
+        for along in (False, True):
+            for where, cuts in zip(("middle", "low_quarter", "high_quarter"), PACK_CUTS):
+                halved = halve_across(islands[k], along, cuts)
+                if halved is not None:
+                    out.append((islands[:k] + islands[k + 1:] + halved[0],
+                                {"island_rank": rank, "along_axis": along, "at": where, "cut_length": halved[1]}))
+    return out
+
+
+def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float) -> tuple[_Packed, dict] | None:
+    """The best halving this round, packed, and its description; None if none packs above ``floor``."""
+    cands = _halvings(islands, comp, cfg)
+    if not cands:
+        return None
+    guesses = []  # (guessed utilisation, candidate, mode)
+    for m in HALVING_MODES:
+        mode = PACK_MODES[m]
+        arrays = [island_arrays(turned(c, mode)) for c, _ in cands]
+        est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
+        guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
+    guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
+    top = guesses[:PACK_SEARCHED]
+    best = _best_packed([cands[i][0] for _, i, _ in top], [m for _, _, m in top], cfg, floor)
+    if best is None:
+        return None
+    return best, next(d for c, d in cands if c is best.islands)
+
+
+def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
+    """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
+    connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig`."""
+    best = _best_packed([islands] * len(PACK_MODES), list(range(len(PACK_MODES))), cfg)
+    if best is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
+        return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
+                                                  padding=cfg.padding), {"mode": 0, "halvings": []})
+    stats = {"utilization_uncut": best.utilization, "halvings": []}
+    for _ in range(cfg.pack_max_cuts):
+        if best.utilization >= cfg.pack_target:
+            break
+        got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_cut_gain)
+        if got is None or got[0].utilization < best.utilization + cfg.pack_cut_gain:
+            break
+        best = got[0]
+        stats["halvings"].append({**got[1], "utilization": best.utilization})
+    stats["mode"] = best.mode
+    return LayoutChoice(turned(best.islands, PACK_MODES[best.mode]), best.packing, stats)
