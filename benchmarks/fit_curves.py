@@ -22,7 +22,6 @@ import torch
 
 from mna import config as C
 from mna import shapes
-from mna.chart_count import resolve_charts
 from mna.data import load_surface
 from mna.fit import Fitter
 from mna.inference import settle_c
@@ -51,17 +50,13 @@ def curve(path: Path, steps: int, every: int, charts: int | str = 3, seed: int =
           hard_targets: int | None = None, threads: int = 0) -> dict:
     """Fit ``path`` for ``steps`` steps, scoring every ``every``; the curve and the last score.
 
-    ``charts``: a number, ``auto`` (the input's topology decides, :mod:`mna.chart_count`) or
-    ``grow`` (start with the preset's and grow where coverage stalls, :mod:`mna.grow`);
+    ``charts``: a number, or ``auto`` (start with 3 and grow where coverage stalls, :mod:`mna.grow`);
     ``hard_targets``: None keeps the preset's; ``threads`` > 0 sets torch's CPU threads.
     """
     cfg = C.fast()
     cfg.steps, cfg.seed, cfg.device = steps, seed, device
     surface = load_surface(path)
-    if charts == "auto":
-        cfg.charts_rule = "topology"
-        resolve_charts(cfg, surface)
-    elif charts == "grow":
+    if charts in ("auto", "grow"):
         cfg.charts_rule = "grow"
     else:
         cfg.model.charts, cfg.charts_rule = int(charts), "fixed"
@@ -141,7 +136,7 @@ def table(rows: list[dict]) -> str:
     for r in rows:
         c = r["curve"]
         marks = [min(c, key=lambda p, q=q: abs(p["step"] - q * r["steps"]))["fscore_mesh"] for q in (0.25, 0.5, 0.75)]
-        k = f"{r['charts']} (auto)" if r.get("rule") == "topology" else str(r["charts"])
+        k = f"3 -> {r['charts']} (auto)" if r.get("rule") == "grow" else str(r["charts"])
         lines.append(f"| {r['mesh']} | {r['faces']} | {k} | {r.get('hard_targets', 0)} | {r['fscore_mesh']:.2f} | "
                      f"{r['oracle']:.2f} | "
                      f"{r['oracle'] - r['fscore_mesh']:.2f} | {r['fscore_pcl']:.2f} | {r['distortion_metric']:.3f} | "

@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="hard shapes (genus 4, fine relief, thin limbs, many parts) as curves; see fit_curves.py")
     ap.add_argument("--steps", type=int, default=3000, help="--hard: steps per fit (default: the fast preset's 3000)")
     ap.add_argument("--curve-every", type=int, default=300, help="--hard: score every this many steps")
-    ap.add_argument("--charts", default="3", help="--hard: charts per fit, or auto (from the mesh's genus)")
+    ap.add_argument("--charts", default="3", help="--hard: charts per fit, or auto (3, grown where coverage stalls)")
     ap.add_argument("--hard-targets", type=int, default=None, help="--hard: extra hard targets per step "
                     "(default: the preset's)")
     ap.add_argument("--threads", type=int, default=0, help="--hard: torch CPU threads (0 = torch's default)")
@@ -204,8 +204,8 @@ def hard_main(args) -> int:
         "`benchmarks/fit_quality.py --hard --steps N --curve-every M [--charts K|auto] [--hard-targets H] "
         f"[--threads T]`: preset `fast` (width {cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart, "
         f"{cfg.targets} uniform targets/step), seed 0, on {args.device} ({platform.machine()}, {os.cpu_count()} cores, "
-        f"torch {torch.__version__}). One row per shape and variant (K charts, `(auto)`: chosen by "
-        "`mna.chart_count` from the mesh's genus; hard targets: extra targets per step where the charts err most, "
+        f"torch {torch.__version__}). One row per shape and variant (K charts; `3 -> K (auto)`: started with 3 "
+        "and grown where coverage stalled, `mna.grow`; hard targets: extra targets per step where the charts err most, "
         "`mna.hard_targets`). Scores every M steps on a copy of the model with its own c (the same metrics as a "
         "finished run); train s excludes the scoring. Oracle F = two independent 25,000-point samples of the input "
         "surface. Curves: `benchmarks/fit_quality_hard.png`.\n\n" + fit_curves.table(rows) + "\n"

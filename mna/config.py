@@ -129,10 +129,9 @@ class FitConfig(AtlasSettings):
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
     charts_rule: str = "fixed"
-    """``fixed``: ``model.charts`` as given; ``topology``: chosen from the input mesh's genus
-    (:mod:`mna.chart_count`) when the fit starts, and saved resolved in ``model.charts``;
-    ``grow``: start with ``model.charts`` and add one where a gap in the charts' coverage
-    stops closing (:mod:`mna.grow`), up to ``max_charts``; ``model.charts`` is saved as grown."""
+    """``fixed``: ``model.charts`` charts throughout; ``grow``: start with ``model.charts``
+    and add one where a gap in the charts' coverage stops closing (:mod:`mna.grow`), up to
+    ``max_charts``; ``model.charts`` is saved as grown."""
     max_charts: int = 6
     """Cap of the ``grow`` rule."""
     hard_targets: int = 0
@@ -194,7 +193,7 @@ MAX_TIME_BUDGET = 3.2e8
 #: positional-encoding octaves: 2^octaves multiplies coordinates in [-1, 1] (float32 keeps 24 bits)
 MAX_OCTAVES = 16
 DEVICES = ("auto", "cpu", "cuda")
-CHARTS_RULES = ("fixed", "topology", "grow")
+CHARTS_RULES = ("fixed", "grow")
 
 
 def check_int(value, name: str, low: int, high: int | None = None) -> int:

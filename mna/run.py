@@ -19,7 +19,6 @@ import torch
 import trimesh
 
 from mna import config as config_mod
-from mna.chart_count import resolve_charts
 from mna.checkpoint import read_state, write_state
 from mna.config import FitConfig
 from mna.data import Surface, load_surface
@@ -32,6 +31,7 @@ from mnacore.atomic import atomic_path, write_json
 from mnacore.charts import save_charts
 from mnacore.errors import MnaError
 from mnacore.frame import Normalization
+from mnacore.topology import mesh_topology
 
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint.pt"
@@ -105,9 +105,6 @@ def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: boo
     cfg.validate()
     # everything is validated before the output folder is touched
     surface = load_surface(input_path)
-    charts_note = resolve_charts(cfg, surface)
-    if charts_note:
-        log(charts_note)
     device = resolve_device(cfg.device)
     if resume:
         read_metrics(out)  # a damaged metrics.json fails now, not after the fit
@@ -227,7 +224,8 @@ def extract_run(run: str | Path, points: int | None = None, grid: int | None = N
         "distortion_metric": dist.distortion_metric, "distortion_conformal": dist.distortion_conformal,
         "distortion_area": dist.distortion_area, "occupancy_rate": dist.occupancy_rate,
         "degenerate_charts": dist.degenerate_charts,
-        "charts": cfg.model.charts, "c": float(model.c), "points": int(len(sample.points)),
+        "charts": cfg.model.charts, "charts_rule": cfg.charts_rule, "c": float(model.c),
+        "points": int(len(sample.points)), "input_topology": _topology(surface),
         "acceptance_rate": sample.acceptance, "mesh_faces": int(len(chart_grid.faces)),
         "normalization": norm.to_dict(), "input": surface.path,
         "device": str(next(model.parameters()).device), "torch": torch.__version__,
@@ -236,6 +234,16 @@ def extract_run(run: str | Path, points: int | None = None, grid: int | None = N
     metrics["timings"] = {**old.get("timings", {}), **timings}
     write_json(run / METRICS, metrics)
     return metrics
+
+
+def _topology(surface: Surface) -> dict | None:
+    """Parts, genus per part, boundary loops of a mesh input (None for a point cloud): what
+    makes an input hard for few charts, next to how many the fit used."""
+    if not surface.is_mesh:
+        return None
+    t = mesh_topology(surface.mesh.vertices, surface.mesh.faces)
+    return {"parts": t.parts, "genus": t.total_genus, "genus_per_part": list(t.genus),
+            "boundaries": int(sum(t.boundaries)), "manifold": t.manifold}
 
 
 def _write_points(path: Path, points: np.ndarray, dtype: type = np.float32) -> None:

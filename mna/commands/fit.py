@@ -14,7 +14,8 @@ def register(subparsers) -> None:
     p.add_argument("input", metavar="INPUT", help="mesh (.obj .ply .off .stl .glb) or point cloud (.ply .xyz .npy .npz)")
     p.add_argument("-o", "--out", required=True, metavar="RUN", help="run folder to write")
     p.add_argument("--charts", default=None, metavar="K|auto",
-                   help="number of charts K, or auto: from the mesh's genus (the fast preset's default)")
+                   help="K charts throughout, or auto: start with 3 and add charts (up to 6) where the coverage "
+                        "stalls")
     p.add_argument("--preset", default="fast", help="fast (default), paper or tiny")
     p.add_argument("--config", default=None, metavar="YAML", help="start from a saved config.yaml instead of a preset")
     p.add_argument("--seed", type=int, default=None)
@@ -86,13 +87,19 @@ def build_config(args: argparse.Namespace):
     return cfg.validate()
 
 
+#: charts an ``auto`` fit starts with (the paper's K)
+AUTO_START = 3
+
+
 def set_charts(cfg, value: str | int, resume: bool) -> None:
-    """``--charts K`` fixes K; ``--charts auto`` lets the input's topology choose it
-    (:mod:`mna.chart_count`). On --resume it must agree with the run's."""
+    """``--charts K`` fixes K; ``--charts auto`` starts with 3 and grows charts where the
+    coverage stalls (:mod:`mna.grow`). On --resume it must agree with the run's."""
     if str(value) == "auto":
-        if resume and cfg.charts_rule != "topology":
+        if resume and cfg.charts_rule != "grow":
             raise MnaError(f"--charts auto differs from the run's fixed {cfg.model.charts} charts; cannot resume")
-        cfg.charts_rule = "topology"
+        if not resume:
+            cfg.model.charts = min(AUTO_START, cfg.max_charts)
+        cfg.charts_rule = "grow"
         return
     try:
         charts = int(value)

@@ -18,7 +18,8 @@ def register(subparsers) -> None:
     p.add_argument("mesh", metavar="MESH", help="triangle mesh (.obj .ply .off .stl .glb)")
     p.add_argument("-o", "--out", required=True, metavar="OUT", help="output (and run) folder")
     p.add_argument("--charts", default=None, metavar="K|auto",
-                   help="number of charts K, or auto: from the mesh's genus (the fast preset's default)")
+                   help="K charts throughout, or auto: start with 3 and add charts (up to 6) where the coverage "
+                        "stalls")
     p.add_argument("--preset", default="fast", choices=["fast", "paper", "tiny"], help="fit preset (default fast)")
     budget = p.add_mutually_exclusive_group()
     budget.add_argument("--steps", type=int, default=None, help="optimisation steps of the fit")

@@ -120,3 +120,31 @@ def test_grow_rule_fit_resumes_exactly_and_saves_the_grown_count(torus_file, tmp
     mb, _, _, _ = load_model(part)
     for (na, pa), (nb, pb) in zip(ma.state_dict().items(), mb.state_dict().items()):
         assert torch.equal(pa, pb), na
+
+
+def test_cli_charts_auto_grows_from_three_and_bad_values_are_one_line(torus_file, tmp_path, capsys):
+    from mna.cli import main
+
+    run = tmp_path / "run"
+    argv = ["fit", torus_file, "-o", str(run), "--preset", "tiny", "--charts", "auto", "--steps", "6",
+            "--no-progress", "--device", "cpu"]
+    assert main(argv) == 0
+    saved = yaml.safe_load((run / "config.yaml").read_text())
+    assert saved["charts_rule"] == "grow" and saved["model"]["charts"] == 3 and saved["max_charts"] == 6
+    capsys.readouterr()
+    assert main(["fit", torus_file, "-o", str(run), "--resume", "--charts", "2", "--no-progress"]) == 2
+    assert "cannot resume" in capsys.readouterr().err
+    for value in ("many", "2.5", ""):
+        out = tmp_path / f"bad{value}"
+        assert main(["fit", torus_file, "-o", str(out), "--charts", value]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "--charts must be an integer or auto" in err
+        assert not out.exists() or not any(out.iterdir())
+
+
+def test_paper_comparisons_keep_a_fixed_k():
+    from mna import paper
+
+    cfg = C.fast()
+    cfg.charts_rule = "grow"
+    assert paper.configure(cfg, charts=3).charts_rule == "fixed"

@@ -41,6 +41,8 @@ def test_run_folder_contract(torus_file, tmp_path):
                 "distortion_conformal", "distortion_area", "occupancy_rate", "degenerate_charts", "timings"):
         assert key in m
     assert len(m["occupancy_rate"]) == 3 and all(0 <= r <= 100 for r in m["occupancy_rate"])
+    assert m["input_topology"] == {"parts": 1, "genus": 1, "genus_per_part": [1], "boundaries": 0, "manifold": True}
+    assert m["charts"] == 3 and m["charts_rule"] == "fixed"
     # outputs are in the input's frame: the point cloud overlaps the input's bounding box
     src = trimesh.load(torus_file, process=False)
     pts = trimesh.load(run / "points.ply").vertices
@@ -91,6 +93,7 @@ def test_point_cloud_input(tmp_path):
     np.save(tmp_path / "cloud.npy", np.asarray(pts))
     res = fit_run(str(tmp_path / "cloud.npy"), tmp_path / "run", _tiny(20), progress_bar=False, log=lambda s: None)
     assert res.metrics["fscore_pcl"] >= 0 and (tmp_path / "run" / "points.ply").is_file()
+    assert res.metrics["input_topology"] is None  # a cloud has no faces to count
 
 
 def test_atlasnet_mode_has_full_squares(torus_file, tmp_path):
