@@ -9,7 +9,7 @@ import trimesh
 
 from mna import config as C
 from mna.data import make_surface
-from mna.hard_targets import EMA, HardTargets, cell_labels
+from mna.hard_targets import EMA, ErrorMap, HardTargets, cell_labels
 from mna.run import fit_run, load_model
 from mnacore.errors import MnaError
 
@@ -39,13 +39,13 @@ def test_draws_follow_area_times_error():
     """Error 1 on the upper hemisphere and 0.01 below: the upper share of the draws is
     A_up / (A_up + 0.01 A_low) = 1 / 1.01, not the area-uniform 1/2."""
     surface = _sphere()
-    hard = HardTargets(surface, 20000, 1000)
+    hard = HardTargets(ErrorMap(surface, 1000), 20000)
     rng = np.random.default_rng(0)
     before, _, _ = hard.draw(rng)
     assert _upper_share(before) == pytest.approx(0.5, abs=0.02)  # nothing recorded: area-uniform
     elements = np.arange(surface.element_count)
     up = surface.element_centers[:, 2] > 0
-    hard.record(elements, np.where(up, 1.0, 0.01))
+    hard.errors.record(elements, np.where(up, 1.0, 0.01))
     pts, normals, faces = hard.draw(rng)
     assert pts.shape == (20000, 3) and normals.shape == (20000, 3) and faces.shape == (20000,)
     # a cell straddling the equator mixes both errors; the equator band is a small share of the area
@@ -55,7 +55,7 @@ def test_draws_follow_area_times_error():
 
 def test_record_is_a_running_mean_per_cell():
     surface = _sphere(2)
-    hard = HardTargets(surface, 10, 50)
+    hard = ErrorMap(surface, 50)
     elements, dist = np.array([0, 0, 1]), np.array([0.2, 0.4, 0.9])
     cell0 = hard.cell_of[0]
     hard.record(elements, dist)
