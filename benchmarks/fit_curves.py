@@ -91,16 +91,26 @@ def curves_figure(rows: list[dict], stem: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    shapes_seen = sorted({r["mesh"] for r in rows})
+    colours = {m: plt.cm.tab10(i % 10) for i, m in enumerate(shapes_seen)}
     for r in rows:
+        # one colour per shape, one line style per variant: 3 fixed charts solid, more dashed,
+        # grown dotted, hard targets dash-dot
+        style = "-." if r.get("hard_targets") else ":" if r.get("rule") == "grow" else "-" if r["charts"] == 3 else "--"
+        label = f"{Path(r['mesh']).stem} K={r['charts']}{' grown' if r.get('rule') == 'grow' else ''}" + \
+            (f" +{r['hard_targets']} hard" if r.get("hard_targets") else "")
         s = [p["step"] for p in r["curve"]]
-        ax[0].plot(s, [p["fscore_mesh"] for p in r["curve"]], marker="o", label=r["mesh"])
-        ax[1].plot(s, [p["distortion_metric"] for p in r["curve"]], marker="o", label=r["mesh"])
-        if r.get("oracle") is not None:
-            ax[0].axhline(r["oracle"], color=ax[0].lines[-1].get_color(), ls=":", lw=0.8)
+        kw = dict(marker="o", ms=3, color=colours[r["mesh"]], ls=style, label=label)
+        ax[0].plot(s, [p["fscore_mesh"] for p in r["curve"]], **kw)
+        ax[1].plot(s, [p["distortion_metric"] for p in r["curve"]], **kw)
+    for m in shapes_seen:
+        oracle = next((r["oracle"] for r in rows if r["mesh"] == m and r.get("oracle") is not None), None)
+        if oracle is not None:
+            ax[0].axhline(oracle, color=colours[m], ls=":", lw=0.6)
     ax[0].set(xlabel="steps", ylabel="F@1% (chart mesh)", title="Fidelity (dotted: oracle)")
     ax[1].set(xlabel="steps", ylabel="metric distortion", title="Distortion", yscale="log")
-    ax[0].legend(fontsize=7)
+    ax[1].legend(fontsize=6, ncol=2, loc="upper right")
     fig.tight_layout()
     for ext in ("png", "pdf"):
         tmp = stem.with_name(f".{stem.name}.tmp.{ext}")

@@ -212,8 +212,16 @@ def hard_main(args) -> int:
     )
     print(text)
     if not args.no_write:
-        write_section("fit_quality_hard", text)
+        write_section("fit_quality_hard", text + kept_notes("fit_quality_hard"))
     return 0
+
+
+def kept_notes(name: str) -> str:
+    """The hand-written ``Notes ...`` that follow a section's generated table (kept on rewrite)."""
+    current = RESULTS.read_text() if RESULTS.is_file() else ""
+    match = re.search(rf"^## {re.escape(name)}\n.*?(?=^## |\Z)", current, re.MULTILINE | re.DOTALL)
+    notes = match and re.search(r"^Notes .*", match.group(0), re.MULTILINE | re.DOTALL)
+    return "\n" + notes.group(0) if notes else ""
 
 
 if __name__ == "__main__":
