@@ -19,8 +19,9 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    ``cfg.pack_target``: one of the ``PACK_CUT_ISLANDS`` largest islands cut in two along mesh
    edges (UVs kept, so flips, overlap and distortion do not change), across or along its
    principal axis, in the middle or a quarter off one end. A halving adds seam, so it is kept
-   only when it gains ``cfg.pack_cut_gain``, at most ``cfg.pack_max_cuts`` of them, and never
-   more than ``cfg.long_max_islands`` islands per connected component.
+   only when it gains ``cfg.pack_cut_gain``, at most ``cfg.pack_max_cuts`` of them, never
+   more than ``cfg.long_max_islands`` islands per connected component; a part that flattened
+   as one island (its fewest possible seams) is halved only for ``cfg.pack_first_seam_gain``.
 
 Every candidate (halving x mode) is first packed once into an unbounded atlas
 (:func:`texture.scale_search.estimate_layouts`, one xatlas call); only the
@@ -38,7 +39,7 @@ from mnacore.triangles import triangle_areas
 
 from .pack import Packing, pack_islands
 from .scale_search import estimate_layouts, plan_layouts
-from .unwrap_islands import LONG_CUTS, Island, halve_across
+from .unwrap_islands import LONG_CUTS, Island, halve_across, may_halve
 
 #: (turn every island to its minimum-area bounding rectangle first, xatlas PackOptions)
 PACK_MODES: tuple[tuple[bool, dict], ...] = (
@@ -145,26 +146,31 @@ def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, floor: floa
     return best
 
 
-def _halvings(islands: list[Island], comp: np.ndarray, cfg) -> list[tuple[list[Island], dict]]:
-    """Every halving tried this round: (islands after it, its description)."""
+def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) -> list[tuple[list[Island], dict]]:
+    """Every halving tried this round: (islands after it, its description). ``first_seam``:
+    halvings of parts that flattened as one island (:func:`may_halve`), else of the others."""
     per_comp = np.bincount([int(comp[i.work_faces[0]]) for i in islands], minlength=int(comp.max()) + 1)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
     out = []
     for rank, k in enumerate(np.argsort(area, kind="stable")[::-1][:PACK_CUT_ISLANDS]):
-        if per_comp[int(comp[islands[k].work_faces[0]])] >= cfg.long_max_islands:
+        count = int(per_comp[int(comp[islands[k].work_faces[0]])])
+        if not (may_halve(count, cfg) or (first_seam and count == 1 < cfg.long_max_islands)) \
+                or first_seam != (count == 1):
             continue
         for along in (False, True):
             for where, cuts in zip(("middle", "low_quarter", "high_quarter"), PACK_CUTS):
                 halved = halve_across(islands[k], along, cuts)
                 if halved is not None:
                     out.append((islands[:k] + islands[k + 1:] + halved[0],
-                                {"island_rank": rank, "along_axis": along, "at": where, "cut_length": halved[1]}))
+                                {"island_rank": rank, "along_axis": along, "at": where, "cut_length": halved[1],
+                                 "first_seam": first_seam}))
     return out
 
 
-def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float) -> tuple[_Packed, dict] | None:
+def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float,
+                  first_seam: bool = False) -> tuple[_Packed, dict] | None:
     """The best halving this round, packed, and its description; None if none packs above ``floor``."""
-    cands = _halvings(islands, comp, cfg)
+    cands = _halvings(islands, comp, cfg, first_seam)
     if not cands:
         return None
     guesses = []  # (guessed utilisation, candidate, mode)
@@ -194,7 +200,10 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
             break
         got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_cut_gain)
         if got is None or got[0].utilization < best.utilization + cfg.pack_cut_gain:
-            break
+            # a part's first seam (it flattened as one island) must buy more
+            got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_first_seam_gain, True)
+            if got is None or got[0].utilization < best.utilization + cfg.pack_first_seam_gain:
+                break
         best = got[0]
         stats["halvings"].append({**got[1], "utilization": best.utilization})
     stats["mode"] = best.mode

@@ -40,13 +40,13 @@ def test_a_long_strip_is_halved_for_packing_keeping_one_scale_and_no_mirror():
     two 2 x 1 halves fill most of it. The halves keep their UVs up to a rotation and one shared
     scale (every packed edge has the same length ratio to its 3D length), run counter-clockwise,
     and do not overlap."""
-    strip = _grid_island(16, 4, 0.25)
-    comp = np.zeros(len(strip.faces), np.int64)
+    strip, small = _pair()
+    comp = np.zeros(len(strip.faces) + len(small.faces), np.int64)  # one part, two islands
     cfg = UnwrapConfig(resolution=512, padding=4)
-    plain = choose_layout([strip], comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=0))
-    got = choose_layout([strip], comp, cfg)
-    assert len(plain.islands) == 1 and plain.packing.utilization < 0.27
-    assert len(got.islands) == 2 and got.packing.utilization > 0.6
+    plain = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=0))
+    got = choose_layout([strip, small], comp, cfg)
+    assert len(plain.islands) == 2 and plain.packing.utilization < 0.3
+    assert len(got.islands) == 3 and got.packing.utilization > 0.6
     assert got.stats["halvings"][0]["cut_length"] == pytest.approx(1.0)
     uv, faces, island = island_arrays(got.islands)
     px = got.packing.uv
@@ -57,7 +57,29 @@ def test_a_long_strip_is_halved_for_packing_keeping_one_scale_and_no_mirror():
     assert (signed_areas(px, faces) > 0).all()  # never mirrored
     assert verify_packing(px, faces, island, 512)[0] == 0
     work = np.sort(np.concatenate([isl.work_faces for isl in got.islands]))
-    assert np.array_equal(work, np.arange(len(strip.faces)))  # every face once, none added
+    assert np.array_equal(work, np.arange(len(comp)))  # every face once, none added
+
+
+def _pair() -> tuple[Island, Island]:
+    """A 4 x 1 strip and a small square island of the same part (working faces numbered on)."""
+    strip = _grid_island(16, 4, 0.25)
+    small = _grid_island(1, 1, 0.25)
+    small = Island(small.faces, small.uv, small.xyz + [10.0, 0.0, 0.0], small.work_faces + len(strip.faces),
+                   small.work_vertex + len(strip.uv), 1)
+    return strip, small
+
+
+def test_a_part_that_flattened_whole_gets_its_first_seam_only_for_a_large_gain():
+    """The same strip as the only island of its part: halving it is its first seam, kept only
+    when it gains ``pack_first_seam_gain`` (here it gains about 0.65: kept at the default 0.1,
+    refused at 0.8)."""
+    strip = _grid_island(16, 4, 0.25)
+    comp = np.zeros(len(strip.faces), np.int64)
+    got = choose_layout([strip], comp, UnwrapConfig(resolution=512, padding=4))
+    gain = got.packing.utilization - got.stats["utilization_uncut"]
+    assert len(got.islands) == 2 and [h["first_seam"] for h in got.stats["halvings"]] == [True] and gain > 0.5
+    kept = choose_layout([strip], comp, UnwrapConfig(resolution=512, padding=4, pack_first_seam_gain=0.8))
+    assert len(kept.islands) == 1 and kept.stats["halvings"] == [] and kept.packing.utilization < 0.3
 
 
 def test_no_halving_at_the_target_or_past_the_island_cap():
@@ -67,6 +89,7 @@ def test_no_halving_at_the_target_or_past_the_island_cap():
     comp = np.zeros(len(square.faces), np.int64)
     got = choose_layout([square], comp, UnwrapConfig(resolution=512, padding=4))
     assert len(got.islands) == 1 and got.packing.utilization > 0.6 and got.stats["halvings"] == []
-    strip = _grid_island(16, 4, 0.25)
-    capped = choose_layout([strip], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=1))
-    assert len(capped.islands) == 1 and capped.stats["halvings"] == []
+    strip, small = _pair()
+    comp = np.zeros(len(strip.faces) + len(small.faces), np.int64)
+    capped = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=2))
+    assert len(capped.islands) == 2 and capped.stats["halvings"] == []
