@@ -108,7 +108,7 @@ class UnwrapConfig:
     pack_first_seam_gain: float = 0.1
     """A packing halving of a part that flattened as one island (its first seam) is kept only
     for this much utilisation: five times ``pack_cut_gain`` (an unrolled cylinder's strip gains
-    0.25 from it, inspired_mesh's open patch 0.03)."""
+    0.25 from it, inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
     pack_max_cuts: int = 2
     """Most packing halvings (0 = only the islands' turns are searched)."""
 
