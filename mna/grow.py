@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from mna.hard_targets import ErrorMap
+from mna.model import NeuralAtlas
 
 #: a cell is a gap when its distance to the charts exceeds this many times the median's.
 #: Measured on a 3-chart fit of a genus-4 plate, whose uncovered hole rims lie close to the
@@ -94,8 +95,6 @@ def add_chart(model, optimizer: torch.optim.Optimizer, cfg, center: np.ndarray):
     so chart ``K`` is one more slice of each. The new slice is drawn from a generator seeded
     by (seed, K), so a resumed fit grows the same chart as an uninterrupted one.
     """
-    from mna.model import NeuralAtlas
-
     K = model.charts
     cfg.model.charts = K + 1
     with torch.random.fork_rng(devices=[]):
@@ -103,7 +102,7 @@ def add_chart(model, optimizer: torch.optim.Optimizer, cfg, center: np.ndarray):
         grown = NeuralAtlas.from_config(cfg.model, cfg.ablation)
     grown = grown.to(next(model.parameters()).device)
     with torch.no_grad():
-        for (name, new), old in zip(grown.named_parameters(), model.parameters()):
+        for new, old in zip(grown.parameters(), model.parameters()):
             new[:K] = old
         grown.c.copy_(model.c)
         out = grown.chart.out

@@ -64,12 +64,11 @@ class ErrorMap:
         self.cell_of = cell_labels(surface.element_centers, cells)
         n = int(self.cell_of.max()) + 1
         weight = surface.face_areas if surface.is_mesh else np.ones(surface.element_count)
-        self.area = np.bincount(self.cell_of, weights=weight, minlength=n)
+        mass = np.bincount(self.cell_of, weights=weight, minlength=n)
+        self.area = mass / mass.sum()
         """each cell's share of the surface (mesh area, or point count for a cloud), summing to 1."""
-        self.area /= self.area.sum()
-        counts = np.bincount(self.cell_of, weights=weight, minlength=n)[:, None]
         self.center = np.stack([np.bincount(self.cell_of, weights=weight * c, minlength=n)
-                                for c in surface.element_centers.T], 1) / np.maximum(counts, 1e-300)
+                                for c in surface.element_centers.T], 1) / np.maximum(mass, 1e-300)[:, None]
         """(cells, 3) area-weighted centre of each cell (unit-ball frame)."""
         self.error = np.zeros(n)
         """running mean distance (unit ball) from a cell's targets to their nearest chart sample."""

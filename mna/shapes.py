@@ -34,11 +34,8 @@ def genus2(resolution: int = 72) -> trimesh.Trimesh:
         q = np.sqrt((x - cx) ** 2 + y**2) - 0.55
         return np.sqrt(q**2 + z**2) - 0.22
 
-    d1, d2 = ring(-0.6), ring(0.6)
-    k = 0.15  # smooth-min radius: fuses the two tori into one genus-2 surface
-    h = np.clip(0.5 + 0.5 * (d2 - d1) / k, 0.0, 1.0)
-    field = d2 * (1 - h) + d1 * h - k * h * (1 - h)
-    return _implicit(field, lin)
+    # smooth-min radius 0.15: fuses the two tori into one genus-2 surface
+    return _implicit(_smooth_min(ring(-0.6), ring(0.6), 0.15), lin)
 
 
 def two_spheres(radius: float = 0.5, gap: float = 0.4, subdivisions: int = 3) -> trimesh.Trimesh:
@@ -63,6 +60,19 @@ def sheet(size: float = 2.0, resolution: int = 48, amplitude: float = 0.0) -> tr
     return trimesh.Trimesh(verts, faces, process=False)
 
 
+def _smooth_min(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
+    """Polynomial smooth minimum of two distance fields: a fillet of radius ~``k`` where
+    their surfaces meet, so fused parts become one smooth surface."""
+    h = np.clip(0.5 + 0.5 * (b - a) / k, 0.0, 1.0)
+    return b * (1 - h) + a * h - k * h * (1 - h)
+
+
+def _rounded_slab(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Signed distance of a 2 x 2 x 0.4 plate with edges rounded by 0.08 (the plates' body)."""
+    q = np.stack([np.abs(x) - 0.95, np.abs(y) - 0.95, np.abs(z) - 0.12])
+    return np.linalg.norm(np.maximum(q, 0), axis=0) + np.minimum(q.max(0), 0) - 0.08
+
+
 def _implicit(field, lin: np.ndarray) -> trimesh.Trimesh:
     """The zero level set of ``field`` sampled on ``lin``^3 (marching cubes), outward normals."""
     from skimage.measure import marching_cubes
@@ -77,8 +87,7 @@ def genus4(resolution: int = 96) -> trimesh.Trimesh:
     """A rounded plate with four round holes: genus 4 (Euler number -6)."""
     lin = np.linspace(-1.3, 1.3, resolution)
     x, y, z = np.meshgrid(lin, lin, lin, indexing="ij")
-    q = np.stack([np.abs(x) - 0.95, np.abs(y) - 0.95, np.abs(z) - 0.12])
-    slab = np.linalg.norm(np.maximum(q, 0), axis=0) + np.minimum(q.max(0), 0) - 0.08
+    slab = _rounded_slab(x, y, z)
     holes = np.min([np.hypot(x - cx, y - cy) - 0.28 for cx in (-0.5, 0.5) for cy in (-0.5, 0.5)], axis=0)
     return _implicit(np.maximum(slab, -holes), lin)
 
@@ -93,12 +102,8 @@ def pretzel(rings: int = 3, resolution: int = 112) -> trimesh.Trimesh:
     for cx in np.linspace(-span, span, rings):
         q = np.sqrt((x - cx) ** 2 + y**2) - 0.5
         d = np.sqrt(q**2 + z**2) - 0.17
-        if field is None:
-            field = d
-            continue
-        k = 0.12  # smooth-min radius: fuses neighbouring rings into one surface
-        h = np.clip(0.5 + 0.5 * (d - field) / k, 0.0, 1.0)
-        field = d * (1 - h) + field * h - k * h * (1 - h)
+        # smooth-min radius 0.12: fuses neighbouring rings into one surface
+        field = d if field is None else _smooth_min(field, d, 0.12)
     return _implicit(field, lin)
 
 
@@ -107,8 +112,7 @@ def plate(holes: tuple[int, int] = (2, 3), resolution: int = 112) -> trimesh.Tri
     rows, cols = holes
     lin = np.linspace(-1.3, 1.3, resolution)
     x, y, z = np.meshgrid(lin, lin, lin, indexing="ij")
-    q = np.stack([np.abs(x) - 0.95, np.abs(y) - 0.95, np.abs(z) - 0.12])
-    slab = np.linalg.norm(np.maximum(q, 0), axis=0) + np.minimum(q.max(0), 0) - 0.08
+    slab = _rounded_slab(x, y, z)
     centres = [(cx, cy) for cx in np.linspace(-0.55, 0.55, rows) for cy in np.linspace(-0.6, 0.6, cols)]
     radius = 0.5 / max(rows, cols)
     holes_f = np.min([np.hypot(x - cx, y - cy) - radius for cx, cy in centres], axis=0)
@@ -135,9 +139,7 @@ def limbs(resolution: int = 112) -> trimesh.Trimesh:
     for tip in tips:
         t = np.clip((p @ tip) / (tip @ tip), 0, 1)[..., None]
         capsule = np.linalg.norm(p - t * tip, axis=-1) - 0.07
-        k = 0.08  # smooth-min radius: a fillet where a limb meets the body
-        h = np.clip(0.5 + 0.5 * (capsule - field) / k, 0, 1)
-        field = capsule * (1 - h) + field * h - k * h * (1 - h)
+        field = _smooth_min(field, capsule, 0.08)  # a fillet where a limb meets the body
     return _implicit(field, lin)
 
 

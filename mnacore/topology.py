@@ -66,11 +66,9 @@ def mesh_topology(vertices: np.ndarray, faces: np.ndarray) -> Topology:
     if len(border):
         _, piece = _components(nv, border[:, 0], border[:, 1])
         on_border = np.unique(border)
-        first = {}
-        for v in on_border:
-            first.setdefault(piece[v], v)
-        for v in first.values():
-            loops[part_index[v]] += 1
+        # one vertex per loop (the first of each piece), counted in its part
+        _, first = np.unique(piece[on_border], return_index=True)
+        loops = np.bincount(part_index[on_border[first]], minlength=n_parts)
     chi = V - E + F
     genus = np.maximum(0, (2 - chi - loops) // 2)
     order = np.argsort(-F, kind="stable")

@@ -300,13 +300,23 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
     return islands, st
 
 
+def _principal_axis(uv: np.ndarray, minor: bool = False) -> np.ndarray:
+    """Unit principal (or, ``minor``, the other) axis of the points ``uv``."""
+    d = uv - uv.mean(0)
+    return np.linalg.eigh(d.T @ d)[1][:, 0 if minor else -1]
+
+
 def _principal_extent(uv: np.ndarray) -> tuple[float, np.ndarray]:
     """(length of ``uv`` along its principal axis, that unit axis)."""
-    d = uv - uv.mean(0)
-    _, vec = np.linalg.eigh(d.T @ d)
-    axis = vec[:, -1]
-    s = d @ axis
+    axis = _principal_axis(uv)
+    s = (uv - uv.mean(0)) @ axis
     return float(s.max() - s.min()), axis
+
+
+def island_parts(islands: list[Island], comp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the part, i.e. connected component, of each island; the number of islands per part)."""
+    part = np.array([int(comp[i.work_faces[0]]) for i in islands], dtype=np.int64)
+    return part, np.bincount(part, minlength=int(comp.max()) + 1)
 
 
 def _sub_island(isl: Island, sel: np.ndarray) -> Island:
@@ -344,8 +354,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS) -> tuple[list
     cut along edges)."""
     from .regions import face_adjacency
 
-    d = isl.uv - isl.uv.mean(0)
-    axis = np.linalg.eigh(d.T @ d)[1][:, 0 if along else -1]
+    axis = _principal_axis(isl.uv, minor=along)
     s = isl.uv[isl.faces].mean(1) @ axis
     area = triangle_areas(isl.xyz, isl.faces)
     order = np.argsort(s, kind="stable")
@@ -395,14 +404,13 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
         return islands, st
     total = sum(float(np.abs(signed_areas(i.uv, i.faces)).sum()) for i in islands)
     side = float(np.sqrt(total / cfg.long_fill))
-    per_comp = np.bincount([int(comp[i.work_faces[0]]) for i in islands], minlength=int(comp.max()) + 1)
+    part, per_comp = island_parts(islands, comp)
     skip: set[int] = set()
     for _ in range(cfg.long_max_splits):
-        length = [(_principal_extent(i.uv)[0]
-                   if id(i) not in skip and may_halve(per_comp[int(comp[i.work_faces[0]])], cfg) else 0.0)
-                  for i in islands]
+        length = [(_principal_extent(isl.uv)[0] if id(isl) not in skip and may_halve(per_comp[p], cfg) else 0.0)
+                  for isl, p in zip(islands, part)]
         k = int(np.argmax(length))
-        c = int(comp[islands[k].work_faces[0]])
+        c = int(part[k])
         if length[k] <= side:
             break
         halved = halve_across(islands[k])
@@ -410,6 +418,7 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
             skip.add(id(islands[k]))
             continue
         islands = islands[:k] + islands[k + 1:] + halved[0]
+        part = np.concatenate([np.delete(part, k), [c, c]])
         per_comp[c] += 1
         st["long_islands_split"] += 1
     st["atlas_side"] = side

@@ -39,7 +39,7 @@ from mnacore.triangles import triangle_areas
 
 from .pack import Packing, pack_islands
 from .scale_search import estimate_layouts, plan_layouts
-from .unwrap_islands import LONG_CUTS, Island, halve_across, may_halve
+from .unwrap_islands import LONG_CUTS, Island, halve_across, island_parts, may_halve
 
 #: (turn every island to its minimum-area bounding rectangle first, xatlas PackOptions)
 PACK_MODES: tuple[tuple[bool, dict], ...] = (
@@ -149,13 +149,13 @@ def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, floor: floa
 def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) -> list[tuple[list[Island], dict]]:
     """Every halving tried this round: (islands after it, its description). ``first_seam``:
     halvings of parts that flattened as one island (:func:`may_halve`), else of the others."""
-    per_comp = np.bincount([int(comp[i.work_faces[0]]) for i in islands], minlength=int(comp.max()) + 1)
+    part, per_comp = island_parts(islands, comp)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
     out = []
     for rank, k in enumerate(np.argsort(area, kind="stable")[::-1][:PACK_CUT_ISLANDS]):
-        count = int(per_comp[int(comp[islands[k].work_faces[0]])])
-        if not (may_halve(count, cfg) or (first_seam and count == 1 < cfg.long_max_islands)) \
-                or first_seam != (count == 1):
+        count = int(per_comp[part[k]])
+        # ordinary halvings are those :func:`may_halve` allows; first seams, parts of one island
+        if not (count == 1 < cfg.long_max_islands if first_seam else may_halve(count, cfg)):
             continue
         for along in (False, True):
             for where, cuts in zip(("middle", "low_quarter", "high_quarter"), PACK_CUTS):
