@@ -201,9 +201,18 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     crossing-free: pinning then acts only once the map is nearly relaxed, where restarting
     from the Tutte map left a large island stalled (a 46k-face island: 0.068 at the free
     run's first crossing, 4.67 guarded from Tutte); if that fails too, that iterate (or the
-    start).
+    start). A disk above ``cfg.multires_faces`` faces is first flattened by
+    :func:`texture.multires.relax_multires` (SLIM's cost per iteration grows faster than the
+    face count); the above runs only where that fails.
     """
     from .relax import crossing_edges, energy_excess, relax_island
+
+    if 0 < cfg.multires_faces < len(faces):
+        from .multires import relax_multires
+
+        got = relax_multires(xyz, uv, faces, cfg, ordered_boundary(faces))
+        if got is not None:
+            return got
 
     def ok(u):
         return np.isfinite(u).all() and (signed_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))

@@ -55,6 +55,10 @@ class RelaxConfig:
     pin_radius: float = 8.0
     """Border vertices within this many median edge lengths of a crossing are held (the
     radius doubles with every round)."""
+    multires_faces: int = 0
+    """Disks above this many faces are flattened by :mod:`texture.multires` (coarse SLIM,
+    then ARAP on the whole) instead of SLIM on the whole (0 = never); used by
+    :func:`texture.flatten.relax_disk`."""
 
 
 def _local_jacobian_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple[float, float]:

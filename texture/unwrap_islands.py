@@ -185,6 +185,11 @@ def prefer_whole(islands: list[Island], trials: dict, comp: np.ndarray) -> tuple
     return islands, swapped
 
 
+def relax_config(cfg) -> RelaxConfig:
+    """The SLIM options of an :class:`texture.unwrap.UnwrapConfig`."""
+    return RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain, multires_faces=cfg.multires_faces)
+
+
 def _relax_job(job, _shared=None):
     xyz, uv, faces, rcfg = job
     return relax_disk(xyz, uv, faces, rcfg)
@@ -192,15 +197,15 @@ def _relax_job(job, _shared=None):
 
 def relax_islands(islands: list[Island], cfg) -> dict:
     """SLIM every island (:func:`texture.flatten.relax_disk`), largest first, in parallel processes."""
-    rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
+    rcfg = relax_config(cfg)
     order = sorted(range(len(islands)), key=lambda i: -len(islands[i].faces))
     jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
     done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
-    st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0}
+    st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0, "multires": 0}
     for i, (uv, s) in zip(order, done):
         islands[i].uv = uv
         st["iterations_max"] = max(st["iterations_max"], s["iterations"])
-        st[{"free": "free", "guarded": "guarded", "start": "kept_start"}[s["mode"]]] += 1
+        st[{"free": "free", "guarded": "guarded", "start": "kept_start", "multires": "multires"}[s["mode"]]] += 1
     return st
 
 
@@ -211,7 +216,7 @@ def _slit_job(job, _shared=None):
 
 def slit_islands(islands: list[Island], cfg) -> dict:
     """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel processes)."""
-    rcfg = RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain)
+    rcfg = relax_config(cfg)
     todo = [i for i, isl in enumerate(islands)
             if cfg.max_slits > 0 and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
     jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits) for i in todo]
