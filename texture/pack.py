@@ -27,7 +27,6 @@ from .placement import attempt
 from .policy import DEFAULT_POLICY, SearchPolicy
 from .scale_search import FINE_SHRINK, SHRINK, Plan, coarse_size, plan_layouts, search
 from .shelf import shelf_pack
-from .verify import verify_packing
 
 
 @dataclass
@@ -70,7 +69,7 @@ class Candidate:
 
 def _checked(isl: IslandSet, tpu: float, px: np.ndarray, options, resolution: int) -> Candidate | None:
     """The placement as a :class:`Candidate` if no texel is covered twice, else None."""
-    overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
+    overlap, util = isl.verify(px / resolution, resolution)
     return Candidate(util, tpu, px, options) if overlap == 0 else None
 
 
@@ -146,7 +145,7 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     packer = "xatlas"
     if best is None:
         tpu, px = shelf_pack(isl, resolution, padding)
-        overlap, util = verify_packing(px / resolution, isl.faces, isl.island, resolution)
+        overlap, util = isl.verify(px / resolution, resolution)
         assert overlap == 0 and isl.inside(px, resolution), "shelf packing is valid by construction"
         best, packer = Candidate(util, tpu, px, None), "shelf"
     return Packing(best.px / resolution, best.tpu / resolution, best.tpu, resolution, padding, best.utilization, 0,

@@ -26,7 +26,6 @@ from mnacore.triangles import triangle_areas
 from .islandset import IslandSet
 from .mirrors import turn_back
 from .similarity import similarity_fit
-from .verify import verify_packing
 
 #: largest allowed distance (texels) between xatlas's placement and the re-placed island.
 MAX_FIT_RESIDUAL = 2.0
@@ -146,6 +145,6 @@ def attempt(isl: IslandSet, resolution, padding, tpu, options, mirror_tries: int
     # xatlas keeps charts `padding` texels apart and each island moved <= residual: if two
     # moves cannot close the gutter, skip the (slow) rasterised check; pack_islands runs it
     # on the packing it returns anyway
-    if 2 * got.residual + 1 >= padding and verify_packing(px / resolution, isl.faces, isl.island, resolution)[0]:
+    if 2 * got.residual + 1 >= padding and isl.verify(px / resolution, resolution)[0]:
         return None
     return px

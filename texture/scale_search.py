@@ -18,7 +18,6 @@ import numpy as np
 from .islandset import IslandSet
 from .parallel import parallel_map
 from .placement import attempt, xatlas_pack
-from .verify import verify_packing
 
 #: scale step while no placement is valid, and relative width at which bisection stops.
 SHRINK, BISECT_TOL = 0.95, 0.005
@@ -134,7 +133,7 @@ def _coarse_search(job: SearchJob, _shared=None) -> Plan | None:
                    min_estimate=job.min_estimate)
     if found is None:
         return None
-    util = verify_packing(found.px / res, isl.faces, isl.island, res)[1]
+    util = isl.verify(found.px / res, res)[1]
     return Plan(util, found.tpu * job.resolution / res, dict(job.options),
                 found.attempts + (job.start is not None), found.px / res)
 

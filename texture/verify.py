@@ -6,11 +6,13 @@ import numpy as np
 from .raster import iter_hits
 
 
-def verify_packing(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, resolution: int) -> tuple[int, float]:
-    """(texels hit by two different islands, covered fraction of [0,1]^2) at ``resolution``."""
+def verify_packing(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, resolution: int,
+                   spans: bool = False) -> tuple[int, float]:
+    """(texels hit by two different islands, covered fraction of [0,1]^2) at ``resolution``
+    (``spans``: see :func:`texture.raster.iter_hits`)."""
     owner = np.full(resolution * resolution, -1, np.int64)
     clash = np.zeros(resolution * resolution, bool)
-    for h in iter_hits(uv[faces], resolution, resolution, strict=True):
+    for h in iter_hits(uv[faces], resolution, resolution, strict=True, spans=spans):
         idx = h.row * resolution + h.col
         isl = island[h.face]
         prev = owner[idx]

@@ -331,3 +331,27 @@ def test_packed_islands_are_never_mirrored():
     assert mirrored_islands(isl, packed.uv) == []
     assert verify_packing(packed.uv, faces, island, 256)[0] == 0
     assert packed.utilization > 0.3
+
+
+@pytest.mark.parametrize("strict", [True, False])
+def test_row_spans_hit_exactly_the_texels_of_boxes(strict):
+    """``iter_hits(spans=True)`` (for the long fans of ear-clipped outlines) yields the same
+    (texel, face) hits as the bounding-box scan: random triangles, long thin ones, and
+    corners on texel centres (where the strict/inclusive rule decides)."""
+    from texture.raster import iter_hits
+
+    rng = np.random.default_rng(3)
+    tris = [rng.uniform(-0.1, 1.1, (300, 1, 2)) + rng.normal(0, 0.2, (300, 3, 2))]
+    thin = rng.uniform(0, 1, (200, 3, 2))
+    thin[:, 2] = thin[:, 0] + 1e-3 * (thin[:, 1] - thin[:, 0]) + [2e-3, 0]
+    tris += [thin, (np.round(rng.uniform(0, 1, (300, 3, 2)) * 32) + 0.5) / 64]
+    for tri in tris:
+        for h, w in ((128, 128), (61, 90)):
+            box = {(int(r), int(c), int(f)) for x in iter_hits(tri, h, w, strict) for r, c, f in zip(x.row, x.col, x.face)}
+            span = {(int(r), int(c), int(f)) for x in iter_hits(tri, h, w, strict, spans=True)
+                    for r, c, f in zip(x.row, x.col, x.face)}
+            assert box == span and len(box) > 100
+    # the closed form of the module docstring: (0,0) (1,0) (0,1) on 4 x 4 hits the 6 texels
+    # strictly below the anti-diagonal, 10 with the 4 centres on it
+    unit = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]])
+    assert sum(len(x.row) for x in iter_hits(unit, 4, 4, strict, spans=True)) == (6 if strict else 10)
