@@ -203,7 +203,8 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     run's first crossing, 4.67 guarded from Tutte); if that fails too, that iterate (or the
     start). A disk above ``cfg.multires_faces`` faces is first flattened by
     :func:`texture.multires.relax_multires` (SLIM's cost per iteration grows faster than the
-    face count); the above runs only where that fails.
+    face count); the above runs only where that fails, and not above ``cfg.slim_max_faces``
+    faces: there the start is kept (mode ``start``), and the unwrap's split stage halves the disk.
     """
     from .relax import crossing_edges, energy_excess, relax_island
 
@@ -213,6 +214,8 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
         got = relax_multires(xyz, uv, faces, cfg, ordered_boundary(faces))
         if got is not None:
             return got
+        if 0 < cfg.slim_max_faces < len(faces):  # SLIM would take minutes: the split stage halves it
+            return uv, {"mode": "start", "iterations": 0, "excess": energy_excess(xyz, uv, faces)}
 
     def ok(u):
         return np.isfinite(u).all() and (signed_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))

@@ -13,9 +13,9 @@ to plain SLIM:
    the same disk. Coarse faces degenerate in 3D (three border vertices on a straight border)
    lose a vertex. SLIM flattens the coarse disk (:func:`texture.flatten.relax_disk`).
 2. **Transfer.** Each vertex takes the coarse map at its barycentric position in the start
-   map (the composition of two embeddings); border vertices follow the coarse border by arc
-   length, bowed out by ``BULGE`` of a chord so that no face is left with three collinear
-   corners.
+   map (the composition of two embeddings); border vertices follow the coarse border's chords
+   where they project onto them in the start map, bowed out by ``BULGE`` of a chord so that
+   no face is left with three collinear corners.
 3. **Unfold.** The few faces the transfer flips (along coarse edges where the map bends,
    near the border) unfold under free ARAP iterations (step 4's solver): the first
    injective iterate is kept. Failing that, the vertices around them are placed at the mean
@@ -30,6 +30,8 @@ Measured on the 111k-face bunny's two 47k-face islands: energy excess 0.071 and 
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
@@ -39,17 +41,35 @@ from mnacore.triangles import signed_areas, triangle_areas
 
 from .relax import boundary_edges, crossing_edges, energy_excess
 
-#: vertices of the coarse disk (SLIM on ~2x as many faces takes 0.2-0.4 s)
+#: vertices of the coarse disk (SLIM on ~2x as many faces takes 0.2-0.4 s), or one per this
+#: many faces where that is more: the transfer degrades with the fine-to-coarse ratio (a
+#: 422k-face island from 2000 coarse vertices: 116 flipped faces, and free ARAP then crossed
+#: the border where the coarse SLIM had to hold it; 11k coarse vertices: none)
 COARSE_VERTICES = 2000
+FACES_PER_COARSE_VERTEX = 40
+#: border vertices within this many coarse spacings (arc length) of a sharp border turn are all coarse
+NEAR_SHARP = 2.0
 #: outward bow of a transferred border between two coarse border vertices (fraction of the chord)
 BULGE = 0.02
 #: a coarse face whose 3D area is below this times its longest edge squared is degenerate
 FLAT = 1e-6
-#: patch-growing rounds of the untangling, and of held vertices in the ARAP relaxation
+#: a coarse face with a 3D edge longer than this many coarse spacings is refined, at most
+#: REFINE_ROUNDS times; FIX_ROUNDS bounds the repair rounds of both kinds
+LONG = 3.0
+REFINE_ROUNDS = 6
+FIX_ROUNDS = 16
+#: patch-growing rounds of the untangling
 UNTANGLE_ROUNDS = 8
-HOLD_ROUNDS = 6
-#: free ARAP iterations allowed to unfold a transfer before :func:`untangle` is tried
-FREE_ITERATIONS = 4
+#: rounds of held vertices in the ARAP relaxation (each refactors its system: 3.8 s at 422k
+#: faces, where an iteration costs 0.24 s), and the rings held around a fault per round
+HOLD_ROUNDS = 2
+HOLD_RINGS = 4
+#: a result whose energy excess exceeds WORSE x the coarse map's plus WORSE_BY is refused
+#: (measured: the fine map is within 0.9-1.1x of the coarse one when the steps go well)
+WORSE = 3.0
+WORSE_BY = 0.1
+#: free ARAP iterations allowed to unfold a transfer
+FREE_ITERATIONS = 10
 #: most ARAP iterations, and the least gain in energy excess for another
 ARAP_ITERATIONS = 12
 ARAP_MIN_GAIN = 1e-3
@@ -90,31 +110,60 @@ def _coarse_samples(xyz, faces, border, count, rng) -> tuple[np.ndarray, np.ndar
     d0 = xyz[border] - xyz[np.roll(border, 1)]
     d1 = xyz[np.roll(border, -1)] - xyz[border]
     sharp = np.flatnonzero(np.einsum("ij,ij->i", d0, d1) < 0)
-    kept = np.unique(np.concatenate([at, ears, sharp, [0]]))
+    # ... and every border vertex within two coarse spacings of it (arc length): at a slit's
+    # tip the two sides meet at zero angle, and a coarse border cutting across them left
+    # folds there that ARAP unfolded only by pushing one side across the other
+    total = s[-1] + seg[-1]
+    gap = np.abs(s[:, None] - s[sharp][None, :]) if len(sharp) else np.full((len(s), 1), np.inf)
+    near_sharp = np.flatnonzero((np.minimum(gap, total - gap) <= NEAR_SHARP * spacing).any(1))
+    kept = np.unique(np.concatenate([at, ears, sharp, near_sharp, [0]]))
     interior = np.setdiff1d(np.arange(V), border)
     weight = np.bincount(faces.ravel(), np.repeat(area / 3, 3), V)[interior]
     drawn = rng.choice(interior, size=min(count, len(interior)), replace=False, p=weight / weight.sum())
-    return kept, drawn, border[ears]
+    return kept, drawn, border[ears], spacing
 
 
 def coarse_disk(xyz, uv, faces, border, count, seed=0):
     """(coarse vertices (into the disk's), their Delaunay triangulation in ``uv``, its faces
-    counter-clockwise, positions along ``border`` of the coarse border vertices); see step 1."""
-    kept, drawn, ears = _coarse_samples(xyz, faces, border, count, np.random.default_rng(seed))
-    for _ in range(10):
+    counter-clockwise, positions along ``border`` of the coarse border vertices); see step 1.
+
+    Two repairs, a round each until none is needed: a coarse face degenerate in 3D loses a
+    vertex (not an ear tip); a coarse face with a 3D edge longer than ``LONG`` coarse spacings
+    gains the vertex nearest its centre in ``uv``. The second is what a big disk needs: its
+    Tutte map squeezes the band along the border into a thin ring that area-drawn vertices
+    seldom hit, so coarse faces there reach from the border far inside, and the carried map
+    folded along the border (a 422k-face island)."""
+    kept, drawn, ears, spacing = _coarse_samples(xyz, faces, border, count, np.random.default_rng(seed))
+    interior = np.setdiff1d(np.arange(len(xyz)), border)
+    refined = 0
+    for _ in range(FIX_ROUNDS):
         sel = np.concatenate([border[kept], drawn])
         tri = Delaunay(uv[sel])
         cf = tri.simplices
         p = xyz[sel]
         longest = np.max([np.sum((p[cf[:, i]] - p[cf[:, (i + 1) % 3]]) ** 2, 1) for i in range(3)], 0)
         flat = triangle_areas(p, cf) <= FLAT * longest
-        if not flat.any():
+        if flat.any():
+            drop = np.unique(cf[flat].ravel())
+            drop = drop[~np.isin(sel[drop], ears)]  # ear tips stay corners of the coarse border
+            n_kept = len(kept)
+            kept = np.delete(kept, drop[drop < n_kept])
+            drawn = np.delete(drawn, drop[drop >= n_kept] - n_kept)
+            continue
+        long = longest > (LONG * spacing) ** 2
+        if not long.any() or refined >= REFINE_ROUNDS:
             break
-        drop = np.unique(cf[flat].ravel())
-        drop = drop[~np.isin(sel[drop], ears)]  # ear tips stay corners of the coarse border
-        n_kept = len(kept)
-        kept = np.delete(kept, drop[drop < n_kept])
-        drawn = np.delete(drawn, drop[drop >= n_kept] - n_kept)
+        refined += 1
+        where = tri.find_simplex(uv[interior])
+        cand = np.flatnonzero((where >= 0) & long[np.maximum(where, 0)])
+        cand = cand[~np.isin(interior[cand], sel)]
+        if not len(cand):
+            break
+        centre = uv[sel][cf[where[cand]]].mean(1)
+        d = np.linalg.norm(uv[interior[cand]] - centre, axis=1)
+        order = np.lexsort((d, where[cand]))
+        first = order[np.r_[True, where[cand][order][1:] != where[cand][order][:-1]]]
+        drawn = np.concatenate([drawn, interior[cand[first]]])
     else:
         return None
     cf = tri.simplices.copy()
@@ -123,7 +172,7 @@ def coarse_disk(xyz, uv, faces, border, count, seed=0):
     return sel, tri, cf, kept
 
 
-def transfer(xyz, uv, border, tri, sel, kept, coarse_uv) -> np.ndarray:
+def transfer(uv, border, tri, sel, kept, coarse_uv) -> np.ndarray:
     """(V, 2): the coarse map carried to every vertex (step 2)."""
     simp = tri.find_simplex(uv)
     out = simp < 0
@@ -135,13 +184,16 @@ def transfer(xyz, uv, border, tri, sel, kept, coarse_uv) -> np.ndarray:
     b = np.einsum("nij,nj->ni", T[:, :2], uv - T[:, 2])
     bary = np.column_stack([b, 1.0 - b.sum(1)])
     new = np.einsum("ni,nij->nj", bary, coarse_uv[tri.simplices[simp]])
-    # the border: along the coarse border polygon by 3D arc length, bowed outward
-    seg = np.linalg.norm(xyz[np.roll(border, -1)] - xyz[border], axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    cs = np.append(s[kept], s[-1])
+    # the border: along the coarse border polygon, each vertex where it projects onto its
+    # coarse chord in the start map (as the coarse faces along the chord carry the vertices
+    # inside: a 3D arc-length fraction disagreed with them and folded the band), bowed outward
+    pos = np.arange(len(border))
+    k = np.searchsorted(np.append(kept, len(border)), pos, side="right") - 1
+    ends = np.append(kept, kept[0])
+    a, b = uv[border[ends[k]]], uv[border[ends[k + 1]]]
+    f = (np.einsum("ij,ij->i", uv[border] - a, b - a) / np.maximum(np.einsum("ij,ij->i", b - a, b - a), 1e-300))
+    f = np.clip(f, 0.0, 1.0)[:, None]
     corner = np.vstack([coarse_uv[:len(kept)], coarse_uv[:1]])
-    k = np.searchsorted(cs, s[:-1], side="right") - 1
-    f = ((s[:-1] - cs[k]) / np.maximum(cs[k + 1] - cs[k], 1e-300))[:, None]
     d = corner[k + 1] - corner[k]
     outward = np.column_stack([d[:, 1], -d[:, 0]])  # right of a counter-clockwise border
     new[border] = corner[k] * (1 - f) + corner[k + 1] * f + BULGE * 4 * f * (1 - f) * outward
@@ -204,11 +256,13 @@ def _faults(uv, faces, edges) -> tuple[np.ndarray, np.ndarray]:
 
 def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndarray | None, int]:
     """(an injective map near the transferred ``uv``, ARAP iterations spent). ARAP unfolds the
-    few flipped faces of a transfer (its local step fits proper rotations), but a free border
-    may then cross itself where it nearly touched: the first injective one of
-    ``FREE_ITERATIONS`` iterations from ``uv`` is taken, and where there is none, the vertices
-    around the last iterate's faults are held where ``uv`` has them and the iterations rerun
-    (at most ``HOLD_ROUNDS`` times). Failing that, :func:`untangle` of ``uv``; None if that fails too."""
+    few flipped faces of a transfer (its local step fits proper rotations; the count falls
+    116, 13, 6, 3, 1, 0 on a 422k-face island), but a free border may then cross itself
+    where it nearly touched: up to ``FREE_ITERATIONS`` iterations run from ``uv`` until no face
+    is flipped, and if the border then crosses (or faces stay flipped), the vertices around
+    those faults are held where ``uv`` has them and the iterations rerun (at most
+    ``HOLD_ROUNDS`` times; each hold refactors ARAP's system). Failing that, :func:`untangle`
+    of ``uv``; None if that fails too."""
     spent = 0
     folded = np.zeros(len(uv), bool)  # never held: a vertex held on a flipped face keeps it flipped
     folded[faces[_faults(uv, faces, edges)[0]].ravel()] = True
@@ -216,16 +270,23 @@ def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndar
     for rounds in range(HOLD_ROUNDS + 1):
         current = uv
         for it in range(FREE_ITERATIONS + 1):
-            bad, cross = _faults(current, faces, edges)
-            if not bad.any() and not len(cross):
-                return current, spent
+            bad = _faults(current, faces, edges)[0]
+            if not bad.any():
+                cross = crossing_edges(faces, current, edges)
+                if not len(cross):
+                    return current, spent
+                break
             if it < FREE_ITERATIONS:
                 current = arap.step(current)
                 spent += 1
+        else:
+            cross = np.zeros((0, 2, 2), np.int64)
+        if rounds == HOLD_ROUNDS:
+            break
         around = np.zeros(len(uv), bool)
         around[faces[bad].ravel()] = True
         around[cross.ravel()] = True
-        arap.held |= _grow(around, adj, 2 * (rounds + 1)) & ~folded
+        arap.held |= _grow(around, adj, HOLD_RINGS * (rounds + 1)) & ~folded
         arap.factor()
     fixed = untangle(uv, faces, border, adj)
     if fixed is None or len(crossing_edges(faces, fixed, edges)):
@@ -247,7 +308,7 @@ def held_arap(arap: _Arap, uv, faces, adj, edges) -> tuple[np.ndarray, int, int]
             around = np.zeros(len(uv), bool)
             around[faces[bad].ravel()] = True
             around[cross.ravel()] = True
-            arap.held |= _grow(around, adj, 2 * rounds)
+            arap.held |= _grow(around, adj, HOLD_RINGS * rounds)
             arap.factor()
             continue
         new_excess = energy_excess(arap.xyz, nxt, faces)
@@ -270,7 +331,7 @@ def relax_multires(xyz, uv, faces, cfg, border: np.ndarray) -> tuple[np.ndarray,
     if not is_convex_border(uv, border):
         return None
     try:
-        coarse = coarse_disk(xyz, uv, faces, border, COARSE_VERTICES)
+        coarse = coarse_disk(xyz, uv, faces, border, max(COARSE_VERTICES, len(faces) // FACES_PER_COARSE_VERTEX))
     except (QhullError, ValueError):
         return None
     if coarse is None:
@@ -278,14 +339,19 @@ def relax_multires(xyz, uv, faces, cfg, border: np.ndarray) -> tuple[np.ndarray,
     sel, tri, cf, kept = coarse
     p = xyz[sel]
     start = uv[sel] * np.sqrt(triangle_areas(p, cf).sum() / triangle_areas(uv[sel], cf).sum())
-    coarse_uv, coarse_stats = relax_disk(p, start, cf, cfg)
+    # SLIM itself on the coarse disk: a Delaunay triangulation of scattered vertices is no
+    # mesh to flatten in two resolutions again (its irregular faces folded every transfer)
+    coarse_uv, coarse_stats = relax_disk(p, start, cf, replace(cfg, multires_faces=0))
     adj = _adjacency(faces, len(xyz))
     edges = boundary_edges(faces)
     arap = _Arap(xyz, faces)
-    new, unfold = injective_start(arap, transfer(xyz, uv, border, tri, sel, kept, coarse_uv), faces, border, adj, edges)
+    new, unfold = injective_start(arap, transfer(uv, border, tri, sel, kept, coarse_uv), faces, border, adj, edges)
     if new is None:
         return None
     new, iterations, rounds = held_arap(arap, new, faces, adj, edges)
+    excess = energy_excess(xyz, new, faces)
+    if not excess <= WORSE * coarse_stats["excess"] + WORSE_BY:  # held vertices stuck a fold nearly flat
+        return None
     return new, {"mode": "multires", "iterations": coarse_stats["iterations"] + unfold + iterations,
-                 "excess": energy_excess(xyz, new, faces), "coarse_faces": len(cf), "arap_iterations": unfold + iterations,
+                 "excess": excess, "coarse_faces": len(cf), "arap_iterations": unfold + iterations,
                  "hold_rounds": rounds}

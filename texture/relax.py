@@ -59,6 +59,8 @@ class RelaxConfig:
     """Disks above this many faces are flattened by :mod:`texture.multires` (coarse SLIM,
     then ARAP on the whole) instead of SLIM on the whole (0 = never); used by
     :func:`texture.flatten.relax_disk`."""
+    slim_max_faces: int = 0
+    """Where that fails, disks above this many faces keep their start (0 = SLIM at any size)."""
 
 
 def _local_jacobian_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple[float, float]:

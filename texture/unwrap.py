@@ -78,6 +78,9 @@ class UnwrapConfig:
     """Islands above this many faces are flattened by :mod:`texture.multires` (SLIM on a
     coarse copy, then ARAP): SLIM's iteration costs 0.26 s at 46k faces and 17-23 s at 418k,
     a coarse SLIM plus ARAP about 1 s at 47k. Below it SLIM alone is fast enough."""
+    slim_max_faces: int = 100_000
+    """An island above this many faces whose two-resolution flattening fails is not handed to
+    SLIM (minutes at 400k faces) but kept at its start, so the split stage halves it."""
     resolution: int = 2048
     """Texture size the islands are packed for (texels)."""
     padding: int = 8

@@ -30,6 +30,9 @@ class Island:
     work_faces: np.ndarray
     work_vertex: np.ndarray
     label: int
+    kept_start: bool = False
+    """Its relaxation failed and kept the Tutte start (:func:`texture.flatten.relax_disk`):
+    no slits (they cut toward a relaxed map's distortion peak), the split stage halves it."""
 
 
 def _fiedler_halves(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray] | None:
@@ -187,7 +190,8 @@ def prefer_whole(islands: list[Island], trials: dict, comp: np.ndarray) -> tuple
 
 def relax_config(cfg) -> RelaxConfig:
     """The SLIM options of an :class:`texture.unwrap.UnwrapConfig`."""
-    return RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain, multires_faces=cfg.multires_faces)
+    return RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain, multires_faces=cfg.multires_faces,
+                       slim_max_faces=cfg.slim_max_faces)
 
 
 def _relax_job(job, _shared=None):
@@ -204,6 +208,7 @@ def relax_islands(islands: list[Island], cfg) -> dict:
     st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0, "multires": 0}
     for i, (uv, s) in zip(order, done):
         islands[i].uv = uv
+        islands[i].kept_start = s["mode"] == "start"
         st["iterations_max"] = max(st["iterations_max"], s["iterations"])
         st[{"free": "free", "guarded": "guarded", "start": "kept_start", "multires": "multires"}[s["mode"]]] += 1
     return st
@@ -218,7 +223,7 @@ def slit_islands(islands: list[Island], cfg) -> dict:
     """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel processes)."""
     rcfg = relax_config(cfg)
     todo = [i for i, isl in enumerate(islands)
-            if cfg.max_slits > 0 and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
+            if cfg.max_slits > 0 and not isl.kept_start and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
     jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits) for i in todo]
     done = parallel_map(_slit_job, jobs, parallel=len(jobs) > 1)
     st = {"islands_slit": 0, "slits": 0, "excess_before": [], "excess_after": []}
