@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py                       # shared meshes + procedural shapes
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --only bunny eight --steps 1000 --no-write
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --reuse               # keep existing fits in --work
+    .venv/bin/python benchmarks/unwrap_vs_xatlas.py --scale --reuse       # + the bunny at 111k and 1.0M faces
 
 Per mesh (``../shared/data/meshes`` when present, plus procedural shapes from
 ``mna.shapes``: sphere, torus (genus 1), genus-2, two spheres, a wavy open sheet): a fit
@@ -14,6 +15,14 @@ the same mesh as ``mna unwrap`` reads it: defaults, and the sweep point
 every row. Targets of issue 17 checked per mesh: islands <= 8 on a single-part mesh
 (<= 1.5 per part and <= half of xatlas's on many-part meshes), seam <= 1/2 of xatlas's,
 distortion_metric <= 0.15, 0 flipped faces, 0 overlap, utilisation >= 0.6.
+
+``--scale``: the bunny subdivided twice (1-to-4, 111k faces) and that split 1-to-9 (1.0M
+faces), the same surface, so the bunny's fit serves both; ours and xatlas (defaults) each
+in a process of its own (time and peak RSS per run; xatlas stopped after
+``--xatlas-timeout`` seconds), one harness. Targets: ours after the fit <= xatlas's time at
+>= 50k faces, and <= 3 min and <= 8 GB at 1M faces.
+
+Each run's block goes on top of the section; earlier blocks are kept below it.
 """
 from __future__ import annotations
 
@@ -105,6 +114,131 @@ def run_one(mesh: Path, work: Path, steps: int, size: int, reuse: bool) -> dict:
             "xatlas": xa, "xatlas_fewest": sweep, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
+def split9(vertices, faces):
+    """Every triangle into 9 (each edge in thirds, a vertex at each face's centre): the same
+    surface with 9x the faces, shared edge points shared, winding kept."""
+    import numpy as np
+
+    v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    V, F = len(v), len(f)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges, inv = np.unique(e, axis=0, return_inverse=True)
+    E = len(edges)
+    inv = inv.reshape(3, F).T
+    verts = np.concatenate([v, (2 * v[edges[:, 0]] + v[edges[:, 1]]) / 3, (v[edges[:, 0]] + 2 * v[edges[:, 1]]) / 3,
+                            v[f].mean(1)])
+
+    def third(a, b, eid, k):  # the point k/3 of the way from a to b
+        near_a = np.where(a < b, V + eid, V + E + eid)
+        return near_a if k == 1 else np.where(a < b, V + E + eid, V + eid)
+
+    a, b, c = f.T
+    ab1, ab2 = third(a, b, inv[:, 0], 1), third(a, b, inv[:, 0], 2)
+    bc1, bc2 = third(b, c, inv[:, 1], 1), third(b, c, inv[:, 1], 2)
+    ca1, ca2 = third(c, a, inv[:, 2], 1), third(c, a, inv[:, 2], 2)
+    m = V + 2 * E + np.arange(F)
+    tris = [(a, ab1, ca2), (ab1, ab2, m), (ab1, m, ca2), (ab2, b, bc1), (ab2, bc1, m), (m, bc1, bc2),
+            (ca2, m, ca1), (m, bc2, ca1), (ca1, bc2, c)]
+    return verts, np.concatenate([np.column_stack(t) for t in tris])
+
+
+def _scale_inputs(work: Path) -> list[Path]:
+    """The shared bunny at 111k and 1.0M faces (written once into ``work/scale``)."""
+    import trimesh
+
+    out = work / "scale"
+    out.mkdir(parents=True, exist_ok=True)
+    big, huge = out / "bunny_111k.ply", out / "bunny_1m.ply"
+    if not big.is_file() or not huge.is_file():
+        m = trimesh.load(MESHES / "bunny.off", process=False)
+        v, f = m.vertices, m.faces
+        for _ in range(2):
+            v, f = trimesh.remesh.subdivide(v, f)
+        trimesh.Trimesh(v, f, process=False).export(big)
+        trimesh.Trimesh(*split9(v, f), process=False).export(huge)
+    return [big, huge]
+
+
+def _child(kind: str, mesh: str, run: str, out: str, size: int) -> None:
+    """One measured run in this process (``--child``): prints one JSON line."""
+    import trimesh
+
+    from mnacore.charts import load_charts
+    from texture.harness import measure
+    from texture.unwrap_run import load_unwrap_input, unwrap_to_folder
+    from texture.xatlas_uv import XatlasOptions, unwrap
+
+    inp = load_unwrap_input(Path(mesh))
+    if kind == "ours":
+        doc = unwrap_to_folder(inp, Path(run), Path(out), size=size, padding=8)
+        row = {**doc["uv_metrics"], "islands": doc["islands"], "seconds": doc["timings"]["unwrap_total"],
+               "texture_write": doc["timings"]["texture"] + doc["timings"]["write"],
+               "stages": {k: v for k, v in doc["timings"].items() if k.startswith("unwrap_")}}
+    else:
+        norm = load_charts(Path(run) / "charts.npz").normalization
+        r = unwrap(inp.vertices, inp.faces, XatlasOptions(resolution=size, padding=8), check=False)
+        ref = trimesh.Trimesh(inp.vertices, inp.faces, process=False)
+        row = {**measure(r.mesh, reference=ref, normalization=norm).summary, "seconds": r.seconds}
+    row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    row["peak_rss_workers_mb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(json.dumps(row, default=float), flush=True)
+
+
+def scale_rows(work: Path, size: int, xatlas_timeout: float) -> list[dict]:
+    """Ours and xatlas on the bunny at 111k and 1.0M faces, each in a process of its own."""
+    run = work / "bunny_run"
+    rows = []
+    for mesh in _scale_inputs(work):
+        import trimesh
+
+        faces = len(trimesh.load(mesh, process=False).faces)
+        row = {"mesh": mesh.stem, "faces": faces}
+        for kind, limit in (("ours", None), ("xatlas", xatlas_timeout)):
+            print(f"== {mesh.stem} {kind}", flush=True)
+            cmd = [sys.executable, __file__, "--child", kind, str(mesh), str(run), str(work / "scale" / f"{mesh.stem}_out"),
+                   str(size)]
+            t0 = time.perf_counter()
+            try:
+                done = subprocess.run(cmd, capture_output=True, text=True, timeout=limit, cwd=ROOT)
+                row[kind] = json.loads(done.stdout.strip().splitlines()[-1]) if done.returncode == 0 else {
+                    "error": (done.stderr.strip().splitlines() or ["?"])[-1]}
+            except subprocess.TimeoutExpired:
+                row[kind] = {"timeout": limit}
+            row[kind]["wall"] = time.perf_counter() - t0
+        rows.append(row)
+    return rows
+
+
+def scale_section(rows: list[dict]) -> str:
+    lines = ["Scale (`--scale`): the shared bunny subdivided (same surface, the bunny's fit); each run in a process "
+             "of its own; time = ours after the fit / xatlas's `generate`; peak RSS of the process (its forked "
+             "workers' largest in brackets).", "",
+             "| mesh | faces | islands (ours / xatlas) | seam | distortion_metric | flipped | overlap % | utilisation | "
+             "time s | peak RSS MB (ours / xatlas) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        o, x = r["ours"], r["xatlas"]
+
+        def val(d, k, fmt):
+            return format(d[k], fmt) if k in d else ("> %.0f s" % d["timeout"] if "timeout" in d else "failed")
+
+        lines.append(
+            f"| {r['mesh']} | {r['faces']} | {val(o, 'islands', 'd')} / {val(x, 'charts', 'd')} | "
+            f"{val(o, 'seam_length', '.2f')} / {val(x, 'seam_length', '.2f')} | "
+            f"{val(o, 'distortion_metric', '.3f')} / {val(x, 'distortion_metric', '.3f')} | "
+            f"{val(o, 'flipped_faces', 'd')} / {val(x, 'flipped_faces', 'd')} | "
+            f"{val(o, 'uv_overlap_percent', '.3f')} / {val(x, 'uv_overlap_percent', '.3f')} | "
+            f"{val(o, 'utilization', '.2f')} / {val(x, 'utilization', '.2f')} | "
+            f"{val(o, 'seconds', '.1f')} / {val(x, 'seconds', '.1f')} | "
+            f"{val(o, 'peak_rss_mb', '.0f')} ({val(o, 'peak_rss_workers_mb', '.0f')}) / {val(x, 'peak_rss_mb', '.0f')} |")
+    lines.append("")
+    for r in rows:
+        if "stages" in r["ours"]:
+            lines.append(f"- {r['mesh']}, ours per stage (s): " + ", ".join(
+                f"{k.removeprefix('unwrap_')} {v:.1f}" for k, v in r["ours"]["stages"].items()
+                if k != "unwrap_total") + f"; texture + write {r['ours']['texture_write']:.1f}.")
+    return "\n".join(lines + [""])
+
+
 def targets(r: dict) -> dict:
     o, x = r["ours"], r["xatlas"]
     isl = o["islands"] <= 8 if r["parts"] == 1 else (o["islands"] <= 1.5 * r["parts"] and o["islands"] <= x["charts"] / 2)
@@ -152,10 +286,12 @@ def section(results: list[dict], args) -> str:
 
 
 def write_section(text: str) -> None:
-    """Replace (or append) our section of RESULTS.md, re-read just before writing."""
+    """Put ``text`` (starting with the section's heading) on top of our section of RESULTS.md,
+    the earlier blocks kept below it; re-read just before writing."""
     current = RESULTS.read_text() if RESULTS.is_file() else "# Benchmark results\n"
-    pattern = re.compile(rf"^## {SECTION}\n.*?(?=^## |\Z)", re.S | re.M)
-    new = pattern.sub(lambda _: text + "\n", current) if pattern.search(current) else current.rstrip() + "\n\n" + text
+    pattern = re.compile(rf"^## {SECTION}\n(.*?)(?=^## |\Z)", re.S | re.M)
+    new = (pattern.sub(lambda m: text.rstrip() + "\n\n" + m.group(1).lstrip("\n"), current) if pattern.search(current)
+           else current.rstrip() + "\n\n" + text)
     write_text(RESULTS, new.rstrip() + "\n")
 
 
@@ -168,14 +304,23 @@ def main() -> int:
     ap.add_argument("--size", type=int, default=2048)
     ap.add_argument("--reuse", action="store_true", help="reuse fits already in --work")
     ap.add_argument("--no-write", action="store_true", help="print the section instead of writing RESULTS.md")
+    ap.add_argument("--scale", action="store_true", help="also the bunny at 111k and 1.0M faces")
+    ap.add_argument("--scale-only", action="store_true", help="only the bunny at 111k and 1.0M faces")
+    ap.add_argument("--xatlas-timeout", type=float, default=900.0, help="seconds before a scale run of xatlas stops")
+    ap.add_argument("--child", nargs=5, metavar=("KIND", "MESH", "RUN", "OUT", "SIZE"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.child:
+        _child(*args.child[:4], int(args.child[4]))
+        return 0
     work = Path(args.work)
     results = []
-    for mesh in _inputs(work, args.only):
+    for mesh in ([] if args.scale_only else _inputs(work, args.only)):
         print(f"== {mesh.stem}", flush=True)
         results.append(run_one(mesh, work, args.steps, args.size, args.reuse))
         (work / "results.json").write_text(json.dumps(results, indent=1, default=float))
-    text = section(results, args)
+    text = section(results, args) if results else f"## {SECTION}\n"
+    if args.scale or args.scale_only:
+        text = text.rstrip() + "\n\n" + scale_section(scale_rows(work, args.size, args.xatlas_timeout))
     print(text)
     if not args.no_write:
         write_section(text)

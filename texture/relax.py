@@ -149,8 +149,9 @@ class IslandRelaxation:
 
 
 def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxConfig,
-                 check_crossings: bool = True) -> IslandRelaxation:
+                 check_crossings: bool = True, fixed: np.ndarray | None = None) -> IslandRelaxation:
     """SLIM on one connected island (``uv`` in the isometric scale); see the module docstring.
+    ``fixed``: vertices held where they are throughout (soft constraints, as the guard's).
 
     Returns the input UVs unchanged when they have a degenerate face (infinite energy),
     when the input border already crosses itself, or when SLIM gives non-finite values.
@@ -171,7 +172,7 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
     faces_f = np.asfortranarray(faces, np.int32)
     border = np.unique(border_edges)
     edge_len = np.linalg.norm(uv[faces[:, 1]] - uv[faces[:, 0]], axis=1)
-    pins = np.zeros(0, np.int64)
+    pins = np.zeros(0, np.int64) if fixed is None else np.unique(np.asarray(fixed, np.int64))
 
     def start(at):
         return igl.slim_precompute(xyz_f, faces_f, np.asfortranarray(at * mirror), igl.SYMMETRIC_DIRICHLET,

@@ -348,3 +348,26 @@ def test_large_meshes_label_an_even_subset_and_spread_it_along_the_mesh():
     assert (sub.label[away] == full.label[away]).all()
     assert (sub.label == full.label).mean() > 0.95
     assert sub.stats["far_faces"] == full.stats["far_faces"] == 0
+
+
+def test_benchmark_split9_keeps_the_surface():
+    """benchmarks/unwrap_vs_xatlas.split9 (the 1M-face scale input): 9x the faces, the same
+    area and volume, still closed with consistent winding, every new triangle 1/9 of its parent."""
+    import sys
+    from pathlib import Path
+
+    import trimesh
+
+    bench = str(Path(__file__).resolve().parents[2] / "benchmarks")
+    if bench not in sys.path:
+        sys.path.append(bench)  # appended: benchmarks/render.py must not shadow the render package
+    from unwrap_vs_xatlas import split9
+
+    m = trimesh.creation.icosphere(2)
+    m.vertices *= [1.0, 2.0, 0.5]  # no symmetry to hide a misplaced point
+    v, f = split9(m.vertices, m.faces)
+    out = trimesh.Trimesh(v, f, process=False)
+    assert len(f) == 9 * len(m.faces) and len(v) == len(m.vertices) + 2 * len(m.edges_unique) + len(m.faces)
+    assert out.is_watertight and out.is_winding_consistent
+    assert out.area == pytest.approx(m.area, rel=1e-12) and out.volume == pytest.approx(m.volume, rel=1e-12)
+    np.testing.assert_allclose(out.area_faces.reshape(9, -1).T, np.repeat(m.area_faces[:, None] / 9, 9, 1), rtol=1e-9)
