@@ -334,17 +334,20 @@ def _sub_island(isl: Island, sel: np.ndarray) -> Island:
     return Island(inv.reshape(-1, 3), isl.uv[vid], isl.xyz[vid], isl.work_faces[sel], isl.work_vertex[vid], isl.label)
 
 
-def _connected(faces: np.ndarray) -> bool:
-    """One piece, through shared edges and through shared vertices alike."""
+def _one_piece(adj, mask: np.ndarray) -> bool:
+    """Whether the faces ``mask`` of a manifold island are one piece through shared edges
+    (hence through shared vertices too), from the island's face adjacency ``adj``
+    (:func:`texture.regions.face_adjacency`): an edge of a manifold mesh joins at most two
+    faces, so the pairs within the subset are the subset's own adjacency."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from .regions import face_adjacency
-
-    if len(faces) == 0 or face_components(faces).max() > 0:
+    n = int(mask.sum())
+    if n == 0:
         return False
-    adj = face_adjacency(np.zeros((int(faces.max()) + 1, 3)), faces)
-    g = coo_matrix((np.ones(len(adj.a)), (adj.a, adj.b)), shape=(len(faces), len(faces)))
+    index = np.cumsum(mask) - 1
+    keep = mask[adj.a] & mask[adj.b]
+    g = coo_matrix((np.ones(int(keep.sum())), (index[adj.a[keep]], index[adj.b[keep]])), shape=(n, n))
     return connected_components(g, directed=False)[0] == 1
 
 
@@ -379,9 +382,8 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS) -> tuple[list
         cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
         if best is not None and cut >= best[0]:
             continue
-        a, b = np.flatnonzero(lo), np.flatnonzero(~lo)
-        if _connected(isl.faces[a]) and _connected(isl.faces[b]):
-            best = (cut, a, b)
+        if _one_piece(adj, lo) and _one_piece(adj, ~lo):
+            best = (cut, np.flatnonzero(lo), np.flatnonzero(~lo))
     if best is None:
         return None
     return [_sub_island(isl, best[1]), _sub_island(isl, best[2])], best[0]

@@ -37,6 +37,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from mnacore.triangles import triangle_areas
 
+from .outlines import island_outlines
 from .pack import Packing, pack_islands
 from .scale_search import estimate_layouts, plan_layouts
 from .unwrap_islands import LONG_CUTS, Island, halve_across, island_parts, may_halve
@@ -95,6 +96,28 @@ def island_arrays(islands: list[Island]) -> tuple[np.ndarray, np.ndarray, np.nda
     return (np.concatenate([isl.uv for isl in islands]),
             np.concatenate([isl.faces + offsets[i] for i, isl in enumerate(islands)]),
             np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands]))
+
+
+def outline_arrays(islands: list[Island], cache: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(uv, faces, island) of the islands' outlines only (:func:`texture.outlines.island_outlines`:
+    the same region per island, border vertices only): what xatlas needs for a guess
+    (:func:`texture.scale_search.estimate_layouts`), without the faces inside (a million
+    at 1M input faces, pickled to a worker per candidate). ``cache`` keeps each island's
+    outline by its faces array: a turned island shares them, and a rotation keeps a
+    triangulation valid."""
+    uvs, faces, owner = [], [], []
+    offset = 0
+    for k, isl in enumerate(islands):
+        hit = cache.get(id(isl.faces))
+        if hit is None or hit[0] is not isl.faces:
+            tri = island_outlines(isl.uv, isl.faces, np.zeros(len(isl.faces), np.int64))
+            vid, inv = np.unique(tri, return_inverse=True)
+            hit = cache[id(isl.faces)] = (isl.faces, vid, inv.reshape(-1, 3))
+        uvs.append(isl.uv[hit[1]])
+        faces.append(hit[2] + offset)
+        owner.append(np.full(len(hit[2]), k))
+        offset += len(hit[1])
+    return np.concatenate(uvs), np.concatenate(faces), np.concatenate(owner)
 
 
 @dataclass
@@ -167,7 +190,7 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) ->
     return out
 
 
-def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float,
+def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float, cache: dict,
                   first_seam: bool = False) -> tuple[_Packed, dict] | None:
     """The best halving this round, packed, and its description; None if none packs above ``floor``."""
     cands = _halvings(islands, comp, cfg, first_seam)
@@ -176,7 +199,7 @@ def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float,
     guesses = []  # (guessed utilisation, candidate, mode)
     for m in HALVING_MODES:
         mode = PACK_MODES[m]
-        arrays = [island_arrays(turned(c, mode)) for c, _ in cands]
+        arrays = [outline_arrays(turned(c, mode), cache) for c, _ in cands]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
         guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
@@ -190,6 +213,7 @@ def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float,
 def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
     connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig`."""
+    cache: dict = {}  # outlines of the islands tried (:func:`outline_arrays`)
     best = _best_packed([islands] * len(PACK_MODES), list(range(len(PACK_MODES))), cfg)
     if best is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
         return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
@@ -198,10 +222,10 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     for _ in range(cfg.pack_max_cuts):
         if best.utilization >= cfg.pack_target:
             break
-        got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_cut_gain)
+        got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_cut_gain, cache)
         if got is None or got[0].utilization < best.utilization + cfg.pack_cut_gain:
             # a part's first seam (it flattened as one island) must buy more
-            got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_first_seam_gain, True)
+            got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_first_seam_gain, cache, True)
             if got is None or got[0].utilization < best.utilization + cfg.pack_first_seam_gain:
                 break
         best = got[0]
