@@ -202,19 +202,46 @@ def transfer(uv, border, tri, sel, kept, coarse_uv) -> np.ndarray:
     return new
 
 
+def _ear_faces(faces: np.ndarray, V: int) -> tuple[np.ndarray, np.ndarray]:
+    """(ear tips, their faces rolled so the tip is corner 1): a border vertex of one face."""
+    use = np.bincount(faces.ravel(), minlength=V)
+    tip_corner = use[faces] == 1
+    rows = np.flatnonzero(tip_corner.any(1))
+    corner = tip_corner[rows].argmax(1)
+    rolled = np.stack([np.roll(faces[r], 1 - c) for r, c in zip(rows, corner)]) if len(rows) else faces[:0]
+    return rolled[:, 1], rolled
+
+
+def _place_ears(xyz, uv, ears: np.ndarray) -> None:
+    """Each ear tip where its face is similar to its 3D triangle, counter-clockwise, on its two
+    neighbours as they are (in place): Tutte's mean would put it on their chord."""
+    from .flatten import isometric_triangle
+
+    for a, e, b in ears:
+        t = isometric_triangle(xyz[[a, e, b]])  # (0,0), (|ae|, 0), b: counter-clockwise
+        za, zb = complex(*uv[a]), complex(*uv[b])
+        m = (zb - za) / complex(*t[2])
+        ze = za + m * complex(*t[1])
+        uv[e] = (ze.real, ze.imag)
+
+
 def untangle(uv: np.ndarray, faces: np.ndarray, border: np.ndarray, adj: sp.csr_matrix,
-             edges: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+             edges: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Step 3's repair: the vertices around flipped faces, or around border crossings once no
     face is flipped, at the mean of their neighbours (Tutte's condition, solved on the patch),
     the patch growing each round. Border vertices join from the third round around flips and
     at once around a crossing (it is on the border: a small flap of the island that folded
-    over its neck pulls back inside); never an ear tip, which would land on its neighbours'
-    chord. ``(uv, the vertices moved)``, or None if a flip or a crossing remains."""
+    over its neck pulls back inside). An ear tip (a border vertex of one face; the mean would
+    put it on its neighbours' chord) is placed instead so that its face is similar to its 3D
+    triangle (two ears hanging off one corner crossed each other on a 217k-face island).
+    ``(uv, the vertices moved)``, or None if a flip or a crossing remains."""
     V = len(uv)
     uv = uv.copy()
     movable = np.ones(V, bool)
     movable[border] = False
-    ear_free = np.bincount(faces.ravel(), minlength=V) > 1
+    tips, ears = _ear_faces(faces, V)
+    not_ear = np.ones(V, bool)
+    not_ear[tips] = False
     deg = np.asarray(adj.sum(1)).ravel()
     free = np.zeros(V, bool)
     for r in range(UNTANGLE_ROUNDS + 1):
@@ -226,10 +253,13 @@ def untangle(uv: np.ndarray, faces: np.ndarray, border: np.ndarray, adj: sp.csr_
         around = np.zeros(V, bool)
         around[faces[bad].ravel()] = True
         around[cross.ravel()] = True
-        free |= _grow(around, adj, 2 + r) & (movable if r < 2 and not len(cross) else ear_free)
-        idx = np.flatnonzero(free)
-        lap = sp.diags(deg[idx]) - adj[idx][:, idx]
-        uv[idx] = spsolve(lap.tocsc(), adj[idx] @ np.where(free[:, None], 0.0, uv)).reshape(-1, 2)
+        free |= _grow(around, adj, 2 + r) & (movable if r < 2 and not len(cross) else np.ones(V, bool))
+        solve = free & not_ear
+        idx = np.flatnonzero(solve)
+        if len(idx):
+            lap = sp.diags(deg[idx]) - adj[idx][:, idx]
+            uv[idx] = spsolve(lap.tocsc(), adj[idx] @ np.where(solve[:, None], 0.0, uv)).reshape(-1, 2)
+        _place_ears(xyz, uv, ears[free[tips]])
     return None
 
 
@@ -290,10 +320,11 @@ def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndar
     few flipped faces of a transfer (its local step fits proper rotations; the count falls
     116, 13, 6, 3, 1, 0 on a 422k-face island), but a free border may then cross itself
     where it nearly touched: up to ``FREE_ITERATIONS`` iterations run from ``uv`` until no face
-    is flipped. If the border then crosses, :func:`untangle` repairs that iterate in place (on
-    a 422k-face island a flap of a few faces folded over its neck); failing that (or if faces
-    stay flipped), the vertices around those faults are held where ``uv`` has them and the
-    iterations rerun (at most ``HOLD_ROUNDS`` times; each hold refactors ARAP's system).
+    is flipped. If the border then crosses, or a few faces stay flipped, :func:`untangle`
+    repairs the last iterate in place (on a 422k-face island a flap of a few faces folded over
+    its neck; on a 432k-face one six faces along the border flipped back and forth); failing
+    that, the vertices around those faults are held where ``uv`` has them and the iterations
+    rerun (at most ``HOLD_ROUNDS`` times; each hold refactors ARAP's system).
     Failing that, :func:`untangle` of ``uv``; None if that fails too."""
     spent = 0
     folded = np.zeros(len(uv), bool)  # never held: a vertex held on a flipped face keeps it flipped
@@ -313,10 +344,11 @@ def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndar
                 spent += 1
         else:
             cross = np.zeros((0, 2, 2), np.int64)
-        if len(cross):  # flip-free but crossing (a small flap folded over its neck): repair in place
-            fixed = untangle(current, faces, border, adj, edges)
-            if fixed is not None:
-                return polish(arap.xyz, *fixed, faces, adj, edges), spent
+        # a few faults left (a flap folded over its neck; faces along the border that ARAP
+        # flips back and forth): repaired in place
+        fixed = untangle(current, faces, border, adj, edges, arap.xyz)
+        if fixed is not None:
+            return polish(arap.xyz, *fixed, faces, adj, edges), spent
         if rounds == HOLD_ROUNDS:
             break
         around = np.zeros(len(uv), bool)
@@ -324,7 +356,7 @@ def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndar
         around[cross.ravel()] = True
         arap.held |= _grow(around, adj, HOLD_RINGS * (rounds + 1)) & ~folded
         arap.factor()
-    fixed = untangle(uv, faces, border, adj, edges)
+    fixed = untangle(uv, faces, border, adj, edges, arap.xyz)
     return (None if fixed is None else polish(arap.xyz, *fixed, faces, adj, edges)), spent
 
 

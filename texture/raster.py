@@ -125,7 +125,7 @@ def coverage_count(tri_uv: np.ndarray, height: int, width: int) -> np.ndarray:
     return out.reshape(height, width)
 
 
-def face_id_image(tri_uv: np.ndarray, height: int, width: int):
+def face_id_image(tri_uv: np.ndarray, height: int, width: int, spans: bool = False):
     """Per texel the face covering its centre (-1 for none) and its barycentrics.
 
     Returns ``(face (H, W) int64, bary (H, W, 3) float64)``; where several faces cover a
@@ -133,7 +133,7 @@ def face_id_image(tri_uv: np.ndarray, height: int, width: int):
     """
     face = np.full(height * width, -1, np.int64)
     bary = np.zeros((height * width, 3))
-    for h in iter_hits(tri_uv, height, width, strict=False):
+    for h in iter_hits(tri_uv, height, width, strict=False, spans=spans):
         idx = h.row * width + h.col
         face[idx] = h.face
         bary[idx] = h.bary
