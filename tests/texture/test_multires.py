@@ -103,3 +103,46 @@ def test_a_start_with_a_concave_border_is_refused():
     dent[border[5]] *= 0.9  # pushed inward: the border turns right there
     assert not is_convex_border(dent, border)
     assert relax_multires(xyz, dent, faces, CFG, border) is None
+
+
+def test_ears_are_placed_similar_to_their_3d_triangle():
+    """An ear tip (a border vertex of one face) goes where its face is similar to the 3D
+    triangle, counter-clockwise, whatever its neighbours' scale and turn."""
+    from texture.multires import _ear_faces, _place_ears
+
+    xyz = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.5, 1.5, 0.3], [1.0, -1.0, 0.0]])
+    faces = np.array([[0, 1, 2], [0, 3, 1]])  # vertex 2 and vertex 3 are ear tips
+    tips, ears = _ear_faces(faces, 4)
+    assert sorted(tips.tolist()) == [2, 3] and all(e[1] in (2, 3) for e in ears)
+    angle, scale = 0.7, 0.3
+    rot = scale * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    uv = np.zeros((4, 2))
+    uv[0], uv[1] = [5.0, 1.0], [5.0, 1.0] + rot @ [2.0, 0.0]
+    _place_ears(xyz, uv, ears)
+    assert (signed_areas(uv, faces) > 0).all()
+    for f in faces:  # every edge scaled by the same factor as the shared edge 0-1
+        e3 = np.linalg.norm(xyz[f] - xyz[np.roll(f, -1)], axis=1)
+        e2 = np.linalg.norm(uv[f] - uv[np.roll(f, -1)], axis=1)
+        np.testing.assert_allclose(e2 / e3, scale, rtol=1e-12)
+
+
+def test_untangle_repairs_a_fold_and_only_near_it():
+    from texture.multires import _adjacency, untangle
+    from texture.relax import boundary_edges
+
+    xyz, faces = _cone_sector(n_r=20, n_t=60)
+    uv = _start(xyz, faces)
+    adj = _adjacency(faces, len(xyz))
+    border = ordered_boundary(faces)
+    inner = np.setdiff1d(np.arange(len(xyz)), border)
+    v = inner[len(inner) // 2]
+    bad = uv.copy()
+    nb = adj[v].indices
+    bad[v] = uv[nb].mean(0) + 3.0 * (uv[nb[0]] - uv[nb].mean(0))  # pushed past a neighbour: folded
+    assert (signed_areas(bad, faces) <= 0).sum() >= 2
+    got = untangle(bad, faces, border, adj, boundary_edges(faces), xyz)
+    assert got is not None
+    fixed, moved = got
+    assert (signed_areas(fixed, faces) > 0).all() and not len(crossing_edges(faces, fixed))
+    assert moved[v] and moved.sum() < len(xyz) / 20  # a patch around the fold, not the island
+    np.testing.assert_array_equal(fixed[~moved], bad[~moved])
