@@ -315,7 +315,7 @@ def _faults(uv, faces, edges) -> tuple[np.ndarray, np.ndarray]:
     return bad, (crossing_edges(faces, uv, edges) if not bad.any() else np.zeros((0, 2, 2), np.int64))
 
 
-def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndarray | None, int]:
+def injective_start(arap: _Arap, uv, faces, border, adj, edges, limit: float) -> tuple[np.ndarray | None, int]:
     """(an injective map near the transferred ``uv``, ARAP iterations spent). ARAP unfolds the
     few flipped faces of a transfer (its local step fits proper rotations; the count falls
     116, 13, 6, 3, 1, 0 on a 422k-face island), but a free border may then cross itself
@@ -324,7 +324,8 @@ def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndar
     repairs the last iterate in place (on a 422k-face island a flap of a few faces folded over
     its neck; on a 432k-face one six faces along the border flipped back and forth); failing
     that, the vertices around those faults are held where ``uv`` has them and the iterations
-    rerun (at most ``HOLD_ROUNDS`` times; each hold refactors ARAP's system).
+    rerun (at most ``HOLD_ROUNDS`` times; each hold refactors ARAP's system). A repair is
+    kept only if its energy excess is within ``limit`` (what :func:`relax_multires` accepts).
     Failing that, :func:`untangle` of ``uv``; None if that fails too."""
     spent = 0
     folded = np.zeros(len(uv), bool)  # never held: a vertex held on a flipped face keeps it flipped
@@ -348,7 +349,9 @@ def injective_start(arap: _Arap, uv, faces, border, adj, edges) -> tuple[np.ndar
         # flips back and forth): repaired in place
         fixed = untangle(current, faces, border, adj, edges, arap.xyz)
         if fixed is not None:
-            return polish(arap.xyz, *fixed, faces, adj, edges), spent
+            fixed = polish(arap.xyz, *fixed, faces, adj, edges)
+            if energy_excess(arap.xyz, fixed, faces) <= limit:  # else holding does better
+                return fixed, spent
         if rounds == HOLD_ROUNDS:
             break
         around = np.zeros(len(uv), bool)
@@ -411,12 +414,14 @@ def relax_multires(xyz, uv, faces, cfg, border: np.ndarray) -> tuple[np.ndarray,
     adj = _adjacency(faces, len(xyz))
     edges = boundary_edges(faces)
     arap = _Arap(xyz, faces)
-    new, unfold = injective_start(arap, transfer(uv, border, tri, sel, kept, coarse_uv), faces, border, adj, edges)
+    limit = WORSE * coarse_stats["excess"] + WORSE_BY
+    new, unfold = injective_start(arap, transfer(uv, border, tri, sel, kept, coarse_uv), faces, border, adj, edges,
+                                  limit)
     if new is None:
         return None
     new, iterations, rounds = held_arap(arap, new, faces, adj, edges)
     excess = energy_excess(xyz, new, faces)
-    if not excess <= WORSE * coarse_stats["excess"] + WORSE_BY:  # held vertices stuck a fold nearly flat
+    if not excess <= limit:  # held vertices stuck a fold nearly flat
         return None
     return new, {"mode": "multires", "iterations": coarse_stats["iterations"] + unfold + iterations,
                  "excess": excess, "coarse_faces": len(cf), "arap_iterations": unfold + iterations,
