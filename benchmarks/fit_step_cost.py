@@ -38,7 +38,7 @@ def main() -> int:
     from mna.config import preset
     from mna.data import load_surface
     from mna.fit import Fitter
-    from mna.model import NeuralAtlas
+    from mna.model import ChartNet, NeuralAtlas
 
     torch.set_num_threads(args.threads)
     spent: dict[str, float] = defaultdict(float)
@@ -53,13 +53,13 @@ def main() -> int:
 
     # phases: wrap what train_step calls (the wrappers nest: chart calls inside the objective
     # are split into the no-grad pass over all samples and the gradient pass at the positives)
-    chart = NeuralAtlas.chart
+    chart = ChartNet.forward
 
-    def chart_timed(self, uv, z=None, jacobian=False):
+    def chart_timed(self, *a, **k):
         name = "charts with grad (+Jacobian) at positives" if torch.is_grad_enabled() else "charts, no grad, all UV samples"
-        return timed(name, chart)(self, uv, z, jacobian=jacobian)
+        return timed(name, chart)(self, *a, **k)
 
-    NeuralAtlas.chart = chart_timed
+    ChartNet.forward = chart_timed
     NeuralAtlas.label_logits = timed("label network (occupancy)", NeuralAtlas.label_logits)
     objective.nearest = timed("nearest sample search", objective.nearest)
     cfg = preset("fast")
