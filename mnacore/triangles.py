@@ -39,3 +39,13 @@ def face_normals(points: np.ndarray, faces: np.ndarray, unit: bool = True) -> np
         return n
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+def isometric_triangle(p: np.ndarray) -> np.ndarray:
+    """(3, 2) a triangle with the 3D corners ``p (3, 3)``'s edge lengths, counter-clockwise:
+    ``(0, 0)``, ``(|p1 - p0|, 0)`` and the third corner by projection onto edge 01."""
+    e1, e2 = p[1] - p[0], p[2] - p[0]
+    length = float(np.linalg.norm(e1))
+    x = float(e1 @ e2) / max(length, 1e-300)
+    y = float(np.sqrt(max(float(e2 @ e2) - x * x, 0.0)))
+    return np.array([[0.0, 0.0], [length, 0.0], [x, y]])

@@ -175,16 +175,6 @@ def tutte(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return uv
 
 
-def isometric_triangle(p: np.ndarray) -> np.ndarray:
-    """(3, 2) a triangle with the 3D corners ``p (3, 3)``'s edge lengths, counter-clockwise:
-    ``(0, 0)``, ``(|p1 - p0|, 0)`` and the third corner by projection onto edge 01."""
-    e1, e2 = p[1] - p[0], p[2] - p[0]
-    length = float(np.linalg.norm(e1))
-    x = float(e1 @ e2) / max(length, 1e-300)
-    y = float(np.sqrt(max(float(e2 @ e2) - x * x, 0.0)))
-    return np.array([[0.0, 0.0], [length, 0.0], [x, y]])
-
-
 #: border-pinning retries of the guarded SLIM run (texture.relax's default is 4).
 GUARD_PIN_ROUNDS = 16
 
@@ -211,7 +201,7 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     if 0 < cfg.multires_faces < len(faces):
         from .multires import relax_multires
 
-        got = relax_multires(xyz, uv, faces, cfg, ordered_boundary(faces))
+        got = relax_multires(xyz, uv, faces, cfg, ordered_boundary(faces), relax_disk)
         if got is not None:
             return got
         if 0 < cfg.slim_max_faces < len(faces):  # SLIM would take minutes: the split stage halves it

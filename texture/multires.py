@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
-from mnacore.triangles import signed_areas, triangle_areas
+from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
 from .relax import boundary_edges, crossing_edges, energy_excess
 
@@ -215,8 +215,6 @@ def _ear_faces(faces: np.ndarray, V: int) -> tuple[np.ndarray, np.ndarray]:
 def _place_ears(xyz, uv, ears: np.ndarray) -> None:
     """Each ear tip where its face is similar to its 3D triangle, counter-clockwise, on its two
     neighbours as they are (in place): Tutte's mean would put it on their chord."""
-    from .flatten import isometric_triangle
-
     for a, e, b in ears:
         t = isometric_triangle(xyz[[a, e, b]])  # (0,0), (|ae|, 0), b: counter-clockwise
         za, zb = complex(*uv[a]), complex(*uv[b])
@@ -391,11 +389,11 @@ def held_arap(arap: _Arap, uv, faces, adj, edges) -> tuple[np.ndarray, int, int]
     return current, it, rounds
 
 
-def relax_multires(xyz, uv, faces, cfg, border: np.ndarray) -> tuple[np.ndarray, dict] | None:
+def relax_multires(xyz, uv, faces, cfg, border: np.ndarray, relax_coarse) -> tuple[np.ndarray, dict] | None:
     """Steps 1-4 on a disk whose start ``uv`` is a convex embedding (ordered ``border``);
-    ``(uv, stats)`` at the isometric scale, or None where a step failed (SLIM then runs)."""
-    from .flatten import relax_disk
-
+    ``(uv, stats)`` at the isometric scale, or None where a step failed (SLIM then runs).
+    ``relax_coarse``: SLIM for the coarse disk (:func:`texture.flatten.relax_disk`, handed in
+    by it: the two modules do not import each other)."""
     faces = np.asarray(faces, np.int64)
     if not is_convex_border(uv, border):
         return None
@@ -410,7 +408,7 @@ def relax_multires(xyz, uv, faces, cfg, border: np.ndarray) -> tuple[np.ndarray,
     start = uv[sel] * np.sqrt(triangle_areas(p, cf).sum() / triangle_areas(uv[sel], cf).sum())
     # SLIM itself on the coarse disk: a Delaunay triangulation of scattered vertices is no
     # mesh to flatten in two resolutions again (its irregular faces folded every transfer)
-    coarse_uv, coarse_stats = relax_disk(p, start, cf, replace(cfg, multires_faces=0))
+    coarse_uv, coarse_stats = relax_coarse(p, start, cf, replace(cfg, multires_faces=0))
     adj = _adjacency(faces, len(xyz))
     edges = boundary_edges(faces)
     arap = _Arap(xyz, faces)

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mnacore.triangles import signed_areas, triangle_areas
+from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
-from .flatten import cut_to_disk, isometric_triangle, relax_disk, split_pinched, tutte
+from .flatten import cut_to_disk, relax_disk, split_pinched, tutte
 from .meshprep import face_components
 from .parallel import parallel_map
 from .relax import RelaxConfig, energy_excess

@@ -47,7 +47,7 @@ def test_a_developable_disk_flattens_isometrically():
     assert len(faces) > 4 * COARSE_VERTICES  # the coarse disk is a real coarsening
     uv = _start(xyz, faces)
     assert energy_excess(xyz, uv, faces) > 1.0  # Tutte's disk is far from the sector
-    got = relax_multires(xyz, uv, faces, CFG, ordered_boundary(faces))
+    got = relax_multires(xyz, uv, faces, CFG, ordered_boundary(faces), relax_disk)
     assert got is not None
     new, stats = got
     assert stats["mode"] == "multires" and stats["coarse_faces"] < len(faces) / 2
@@ -74,7 +74,7 @@ def test_multires_is_injective_and_near_slim(shape):
         disk = cut_to_disk(sphere.vertices, sphere.faces)
         xyz, faces = sphere.vertices[disk.source], disk.faces
     uv = _start(xyz, faces)
-    got = relax_multires(xyz, uv, faces, CFG, ordered_boundary(faces))
+    got = relax_multires(xyz, uv, faces, CFG, ordered_boundary(faces), relax_disk)
     assert got is not None
     new, stats = got
     assert _injective(new, faces)
@@ -102,7 +102,7 @@ def test_a_start_with_a_concave_border_is_refused():
     dent = uv.copy()
     dent[border[5]] *= 0.9  # pushed inward: the border turns right there
     assert not is_convex_border(dent, border)
-    assert relax_multires(xyz, dent, faces, CFG, border) is None
+    assert relax_multires(xyz, dent, faces, CFG, border, relax_disk) is None
 
 
 def test_ears_are_placed_similar_to_their_3d_triangle():
