@@ -186,11 +186,11 @@ def _child(kind: str, mesh: str, run: str, out: str, size: int) -> None:
 
 def scale_rows(work: Path, size: int, xatlas_timeout: float) -> list[dict]:
     """Ours and xatlas on the bunny at 111k and 1.0M faces, each in a process of its own."""
+    import trimesh
+
     run = work / "bunny_run"
     rows = []
     for mesh in _scale_inputs(work):
-        import trimesh
-
         faces = len(trimesh.load(mesh, process=False).faces)
         row = {"mesh": mesh.stem, "faces": faces}
         for kind, limit in (("ours", None), ("xatlas", xatlas_timeout)):
@@ -215,12 +215,11 @@ def scale_section(rows: list[dict]) -> str:
              "workers' largest in brackets).", "",
              "| mesh | faces | islands (ours / xatlas) | seam | distortion_metric | flipped | overlap % | utilisation | "
              "time s | peak RSS MB (ours / xatlas) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    def val(d, k, fmt):
+        return format(d[k], fmt) if k in d else ("> %.0f s" % d["timeout"] if "timeout" in d else "failed")
+
     for r in rows:
         o, x = r["ours"], r["xatlas"]
-
-        def val(d, k, fmt):
-            return format(d[k], fmt) if k in d else ("> %.0f s" % d["timeout"] if "timeout" in d else "failed")
-
         lines.append(
             f"| {r['mesh']} | {r['faces']} | {val(o, 'islands', 'd')} / {val(x, 'charts', 'd')} | "
             f"{val(o, 'seam_length', '.2f')} / {val(x, 'seam_length', '.2f')} | "

@@ -25,6 +25,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from mnacore.triangles import signed_areas
 
+from .islands import neighbour_mean, vertex_adjacency
 from .meshprep import corner_groups
 
 
@@ -158,21 +159,11 @@ def tutte(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     bnd = ordered_boundary(faces)
     bnd_uv = np.asarray(igl.map_vertices_to_circle(np.asfortranarray(vertices, np.float64),
                                                    np.ascontiguousarray(bnd, np.int32)), np.float64)
-    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
-    A = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(V, V)).tocsr()
-    A = ((A + A.T) > 0).astype(np.float64)
-    L = sp.diags(np.asarray(A.sum(1)).ravel()) - A
     uv = np.zeros((V, 2))
     uv[bnd] = bnd_uv
-    interior = np.setdiff1d(np.arange(V), bnd)
-    if len(interior):
-        from scipy.sparse.linalg import splu
-
-        L = L.tocsr()
-        rhs = -L[interior][:, bnd] @ bnd_uv
-        lu = splu(L[interior][:, interior].tocsc())
-        uv[interior] = lu.solve(rhs)
-    return uv
+    interior = np.ones(V, bool)
+    interior[bnd] = False
+    return neighbour_mean(vertex_adjacency(faces, V), uv, interior)
 
 
 #: border-pinning retries of the guarded SLIM run (texture.relax's default is 4).

@@ -44,6 +44,29 @@ def half_edges(faces: np.ndarray) -> np.ndarray:
     return np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
 
 
+def vertex_adjacency(faces: np.ndarray, n: int):
+    """(n, n) symmetric 0/1 CSR matrix: vertices joined by a face edge."""
+    he = half_edges(faces)
+    a = coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(n, n)).tocsr()
+    return ((a + a.T) > 0).astype(np.float64).tocsr()
+
+
+def neighbour_mean(adj, uv: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """``uv`` with every ``free`` vertex at the mean of its neighbours in ``adj``
+    (:func:`vertex_adjacency`), the others where they are: Tutte's condition, one sparse
+    solve (``deg(i) x_i - sum_{j ~ i} x_j = 0`` on the free vertices)."""
+    from scipy.sparse import diags
+    from scipy.sparse.linalg import splu
+
+    uv = np.array(uv, np.float64)
+    idx = np.flatnonzero(free)
+    if len(idx):
+        deg = np.asarray(adj[idx].sum(1)).ravel()
+        lap = diags(deg) - adj[idx][:, idx]
+        uv[idx] = splu(lap.tocsc()).solve(adj[idx] @ np.where(free[:, None], 0.0, uv))
+    return uv
+
+
 def edge_keys(ids: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(3F,) integer key of each undirected half-edge, from per-vertex point ``ids``."""
     e = ids[half_edges(faces)]

@@ -18,12 +18,15 @@ to plain SLIM:
    no face is left with three collinear corners.
 3. **Unfold.** The few faces the transfer flips (along coarse edges where the map bends,
    near the border) unfold under free ARAP iterations (step 4's solver): the first
-   injective iterate is kept. Failing that, the vertices around them are placed at the mean
-   of their neighbours (Tutte's condition, solved on a patch that grows each round).
+   injective iterate is kept. Faults left (a crossing, faces flipping back and forth) are
+   repaired in place (:func:`untangle`: Tutte's condition on a growing patch, ear tips
+   placed similar to their 3D triangle; then :func:`polish`, guarded SLIM on the patch),
+   or held (vertices around them kept where the transfer put them) and the iterations rerun.
 4. **Relax.** ARAP (libigl ``arap_precomputation`` / ``arap_solve``: its system is factored
    once, so an iteration costs a back-substitution) with a free border. Where an iteration
    flips a face or crosses the border, the vertices around it are held where they are and the
    iteration is retried (as :func:`texture.relax.relax_island` holds the border for SLIM).
+   A result above ``WORSE`` x the coarse map's energy (plus ``WORSE_BY``) is refused.
 
 Measured on the 111k-face bunny's two 47k-face islands: energy excess 0.062 and 0.070 in
 1.4 and 1.1 s, where SLIM took 22 s (guarded, 0.054) and 6.8 s (0.115).
@@ -34,11 +37,11 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import spsolve
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
+from .islands import neighbour_mean, vertex_adjacency
 from .relax import boundary_edges, crossing_edges, energy_excess
 
 #: vertices of the coarse disk (SLIM on ~2x as many faces takes 0.2-0.4 s), or one per this
@@ -77,12 +80,6 @@ ARAP_ITERATIONS = 12
 ARAP_MIN_GAIN = 1e-3
 
 
-def _adjacency(faces: np.ndarray, n: int) -> sp.csr_matrix:
-    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
-    a = sp.coo_matrix((np.ones(len(he)), (he[:, 0], he[:, 1])), shape=(n, n)).tocsr()
-    return ((a + a.T) > 0).astype(np.float64).tocsr()
-
-
 def _grow(mask: np.ndarray, adj: sp.csr_matrix, rings: int) -> np.ndarray:
     for _ in range(rings):
         mask = mask | ((adj @ mask.astype(np.float64)) > 0)
@@ -98,8 +95,8 @@ def is_convex_border(uv: np.ndarray, border: np.ndarray) -> bool:
     return bool((turn >= -1e-9 * scale).all())
 
 
-def _coarse_samples(xyz, faces, border, count, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(positions along ``border`` kept, interior vertices drawn, ear tips)."""
+def _coarse_samples(xyz, faces, border, count, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(positions along ``border`` kept, interior vertices drawn, ear tips, coarse spacing)."""
     V = len(xyz)
     area = triangle_areas(xyz, faces)
     spacing = np.sqrt(area.sum() / count)  # about the coarse edge length
@@ -240,7 +237,6 @@ def untangle(uv: np.ndarray, faces: np.ndarray, border: np.ndarray, adj: sp.csr_
     tips, ears = _ear_faces(faces, V)
     not_ear = np.ones(V, bool)
     not_ear[tips] = False
-    deg = np.asarray(adj.sum(1)).ravel()
     free = np.zeros(V, bool)
     for r in range(UNTANGLE_ROUNDS + 1):
         bad, cross = _faults(uv, faces, edges)
@@ -252,11 +248,7 @@ def untangle(uv: np.ndarray, faces: np.ndarray, border: np.ndarray, adj: sp.csr_
         around[faces[bad].ravel()] = True
         around[cross.ravel()] = True
         free |= _grow(around, adj, 2 + r) & (movable if r < 2 and not len(cross) else np.ones(V, bool))
-        solve = free & not_ear
-        idx = np.flatnonzero(solve)
-        if len(idx):
-            lap = sp.diags(deg[idx]) - adj[idx][:, idx]
-            uv[idx] = spsolve(lap.tocsc(), adj[idx] @ np.where(solve[:, None], 0.0, uv)).reshape(-1, 2)
+        uv = neighbour_mean(adj, uv, free & not_ear)
         _place_ears(xyz, uv, ears[free[tips]])
     return None
 
@@ -409,7 +401,7 @@ def relax_multires(xyz, uv, faces, cfg, border: np.ndarray, relax_coarse) -> tup
     # SLIM itself on the coarse disk: a Delaunay triangulation of scattered vertices is no
     # mesh to flatten in two resolutions again (its irregular faces folded every transfer)
     coarse_uv, coarse_stats = relax_coarse(p, start, cf, replace(cfg, multires_faces=0))
-    adj = _adjacency(faces, len(xyz))
+    adj = vertex_adjacency(faces, len(xyz))
     edges = boundary_edges(faces)
     arap = _Arap(xyz, faces)
     limit = WORSE * coarse_stats["excess"] + WORSE_BY

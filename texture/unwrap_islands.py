@@ -210,7 +210,7 @@ def relax_islands(islands: list[Island], cfg) -> dict:
         islands[i].uv = uv
         islands[i].kept_start = s["mode"] == "start"
         st["iterations_max"] = max(st["iterations_max"], s["iterations"])
-        st[{"free": "free", "guarded": "guarded", "start": "kept_start", "multires": "multires"}[s["mode"]]] += 1
+        st["kept_start" if s["mode"] == "start" else s["mode"]] += 1
     return st
 
 

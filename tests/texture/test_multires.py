@@ -127,12 +127,13 @@ def test_ears_are_placed_similar_to_their_3d_triangle():
 
 
 def test_untangle_repairs_a_fold_and_only_near_it():
-    from texture.multires import _adjacency, untangle
+    from texture.islands import vertex_adjacency
+    from texture.multires import untangle
     from texture.relax import boundary_edges
 
     xyz, faces = _cone_sector(n_r=20, n_t=60)
     uv = _start(xyz, faces)
-    adj = _adjacency(faces, len(xyz))
+    adj = vertex_adjacency(faces, len(xyz))
     border = ordered_boundary(faces)
     inner = np.setdiff1d(np.arange(len(xyz)), border)
     v = inner[len(inner) // 2]
