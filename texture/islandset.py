@@ -109,12 +109,11 @@ class IslandSet:
     def verify(self, uv: np.ndarray, resolution: int) -> tuple[int, float]:
         """:func:`texture.verify.verify_packing` of the placement ``uv (V, 2)``, rasterised over
         the outlines (the same region per island, so the same texels up to centres lying
-        exactly on an outline's inner edges), by row spans (outline faces are long fans): on
-        the 111k-face bunny's four islands 0.06 s a check instead of 0.35 s."""
+        exactly on an outline's inner edges), by runs of texels (outline faces are long fans)."""
         from .verify import verify_packing
 
         o = self.outline
-        return verify_packing(uv[o.src], o.faces, o.island, resolution, spans=True)
+        return verify_packing(uv[o.src], o.faces, o.island, resolution)
 
     def inside(self, px: np.ndarray, resolution: int) -> bool:
         """Whether every island vertex of ``px`` (V, 2 texels) lies in ``[0, resolution]^2``."""

@@ -5,6 +5,10 @@ and is *hit* by a triangle when its centre ``((c+0.5)/W, 1-(r+0.5)/H)`` lies ins
 (row 0 is the top of the texture, v points up). Example: the triangle
 ``(0,0), (1,0), (0,1)`` on a 4 x 4 grid hits the 6 texels strictly below the
 anti-diagonal; the 4 centres exactly on it are hit only with ``strict=False``.
+
+A triangle is convex, so the centres it hits on one row are a run of columns:
+:func:`iter_spans` yields those runs (a few per triangle, however many texels it covers),
+:func:`iter_hits` the texels themselves.
 """
 from __future__ import annotations
 
@@ -16,9 +20,6 @@ import numpy as np
 CHUNK = 2_000_000
 #: barycentric tolerance; strict tests use +BARY_TOL, inclusive ones -BARY_TOL.
 BARY_TOL = 1e-9
-#: a row's candidate span is widened by this many texels each side: centres the barycentric
-#: test keeps within BARY_TOL of an edge lie far closer to it than this
-SPAN_PAD = 1e-3
 
 
 class Hits(NamedTuple):
@@ -30,35 +31,117 @@ class Hits(NamedTuple):
     bary: np.ndarray  # (N, 3) float64 barycentric coordinates of the texel centre
 
 
+class Spans(NamedTuple):
+    """Runs of hit texels: triangle ``face`` hits columns ``first..last`` (inclusive) of ``row``."""
+
+    row: np.ndarray  # (N,) int64
+    first: np.ndarray  # (N,) int64
+    last: np.ndarray  # (N,) int64, >= first
+    face: np.ndarray  # (N,) int64 index into the triangles
+
+
 def uv_to_pixel(uv: np.ndarray, height: int, width: int) -> np.ndarray:
     """UV -> continuous (col, row) pixel coordinates where integer values are texel centres."""
     uv = np.asarray(uv, np.float64)
     return np.stack([uv[..., 0] * width - 0.5, height - 0.5 - uv[..., 1] * height], -1)
 
 
-def _row_spans(a, b, c, rows, lo_col, hi_col) -> tuple[np.ndarray, np.ndarray]:
-    """(first, last) candidate column of each (triangle, row) pair: where the row's line meets
-    the triangle (its edges' crossings), widened by ``SPAN_PAD`` texels and kept inside the
-    bounding box. A superset of the texel centres inside: the barycentric test decides."""
-    xs = []
-    for p, q in ((a, b), (b, c), (c, a)):
-        dy = q[:, 1] - p[:, 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (rows - p[:, 1]) / dy
-        ok = (dy != 0) & (t >= -1e-9) & (t <= 1 + 1e-9)
-        x = p[:, 0] + np.clip(t, 0.0, 1.0) * (q[:, 0] - p[:, 0])
-        xs.append(np.where(ok, x, np.nan))
-        flat = dy == 0  # an edge along the row: both its ends
-        xs.append(np.where(flat, p[:, 0], np.nan))
-        xs.append(np.where(flat, q[:, 0], np.nan))
-    xs = np.stack(xs, 1)
-    seen = np.isfinite(xs).any(1)
-    with np.errstate(all="ignore"):
-        first = np.ceil(np.nanmin(np.where(seen[:, None], xs, 0.0), 1) - SPAN_PAD)
-        last = np.floor(np.nanmax(np.where(seen[:, None], xs, -1.0), 1) + SPAN_PAD)
-    first = np.maximum(np.where(seen, first, 1), lo_col).astype(np.int64)
-    last = np.minimum(np.where(seen, last, 0), hi_col).astype(np.int64)
+class _Setup(NamedTuple):
+    a: np.ndarray  # (F, 2) first corner, pixels
+    e1: np.ndarray  # (F, 2) b - a
+    e2: np.ndarray  # (F, 2) c - a
+    det: np.ndarray  # (F,)
+    lo: np.ndarray  # (F, 2) bounding box in texels (col, row), clipped to the grid
+    hi: np.ndarray
+    rows: np.ndarray  # (F,) rows of the box (0: hits nothing)
+
+
+def _setup(tri_uv: np.ndarray, height: int, width: int) -> _Setup:
+    px = uv_to_pixel(tri_uv, height, width)  # (F, 3, 2) (col, row)
+    lo = np.maximum(np.ceil(px.min(1) - 1e-12).astype(np.int64), 0)
+    hi = np.floor(px.max(1) + 1e-12).astype(np.int64)
+    hi[:, 0] = np.minimum(hi[:, 0], width - 1)
+    hi[:, 1] = np.minimum(hi[:, 1], height - 1)
+    size = np.maximum(hi - lo + 1, 0)
+    a = px[:, 0]
+    e1, e2 = px[:, 1] - a, px[:, 2] - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    rows = np.where((size[:, 0] > 0) & (np.abs(det) >= 1e-14), size[:, 1], 0)
+    return _Setup(a, e1, e2, det, lo, hi, rows)
+
+
+def _bary(s: _Setup, f: np.ndarray, row: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Barycentric coordinates of texel centres (row, col) in triangles ``f``: the one formula
+    every hit test uses, so spans and texels agree to the last bit."""
+    dx, dy = col - s.a[f, 0], row - s.a[f, 1]
+    b1 = (dx * s.e2[f, 1] - dy * s.e2[f, 0]) / s.det[f]
+    b2 = (s.e1[f, 0] * dy - s.e1[f, 1] * dx) / s.det[f]
+    return 1.0 - b1 - b2, b1, b2
+
+
+def _inside(s: _Setup, f, row, col, tol: float) -> np.ndarray:
+    b0, b1, b2 = _bary(s, f, row, col)
+    return (b0 > tol) & (b1 > tol) & (b2 > tol)
+
+
+def _row_runs(s: _Setup, f: np.ndarray, row: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """(first, last) hit column of each (triangle, row) pair (first > last: none).
+
+    Each barycentric coordinate is linear along the row, so ``b > tol`` bounds the column on
+    one side: the run is solved in closed form, then its ends are moved a column at a time
+    until :func:`_inside` agrees (rounding moves a bound by one column at most; the loop is
+    a guard, not a search)."""
+    lo_col, hi_col = s.lo[f, 0], s.hi[f, 0]
+    det, dy = s.det[f], row - s.a[f, 1]
+    ax = s.a[f, 0]
+    slope = [None, s.e2[f, 1] / det, -s.e1[f, 1] / det]
+    const = [None, (-ax * s.e2[f, 1] - dy * s.e2[f, 0]) / det, (s.e1[f, 0] * dy + s.e1[f, 1] * ax) / det]
+    slope[0], const[0] = -(slope[1] + slope[2]), 1.0 - const[1] - const[2]
+    first, last = lo_col.astype(np.float64), hi_col.astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(3):
+            edge = (tol - const[k]) / slope[k]  # b_k(edge) = tol
+            first = np.where(slope[k] > 0, np.maximum(first, np.floor(edge) + 1), first)
+            last = np.where(slope[k] < 0, np.minimum(last, np.ceil(edge) - 1), last)
+            never = (slope[k] == 0) & ~(const[k] > tol)
+            first = np.where(never, hi_col + 1, first)
+    first = np.clip(np.nan_to_num(first, nan=hi_col + 1), lo_col, hi_col + 1).astype(np.int64)
+    last = np.clip(np.nan_to_num(last, nan=lo_col - 1), lo_col - 1, hi_col).astype(np.int64)
+    for _ in range(8):
+        grow_l = (first > lo_col) & _inside(s, f, row, first - 1, tol)
+        shrink_l = ~grow_l & (first <= last) & ~_inside(s, f, row, first, tol)
+        grow_r = (last < hi_col) & _inside(s, f, row, last + 1, tol)
+        shrink_r = ~grow_r & (last >= first) & ~_inside(s, f, row, last, tol)
+        if not (grow_l.any() or shrink_l.any() or grow_r.any() or shrink_r.any()):
+            break
+        first = first - grow_l + shrink_l
+        last = last + grow_r - shrink_r
     return first, last
+
+
+def iter_spans(tri_uv: np.ndarray, height: int, width: int, strict: bool = True) -> Iterator[Spans]:
+    """Yield :class:`Spans` chunk by chunk for triangles ``tri_uv (F, 3, 2)``: every run of
+    texel centres a triangle hits on a row (``strict`` as in :func:`iter_hits`). The cost is
+    one run per (triangle, row), not per texel."""
+    return _iter_spans(_setup(tri_uv, height, width), BARY_TOL if strict else -BARY_TOL)
+
+
+def _iter_spans(s: _Setup, tol: float) -> Iterator[Spans]:
+    cum = np.cumsum(s.rows)
+    start = 0
+    while start < len(s.rows):
+        base = cum[start - 1] if start else 0
+        stop = max(int(np.searchsorted(cum, base + CHUNK // 8, side="right")), start + 1)
+        faces = np.arange(start, stop)
+        start = stop
+        nr = s.rows[faces]
+        if nr.sum() == 0:
+            continue
+        f = np.repeat(faces, nr)
+        row = s.lo[f, 1] + np.arange(int(nr.sum())) - np.repeat(np.cumsum(nr) - nr, nr)
+        first, last = _row_runs(s, f, row, tol)
+        keep = first <= last
+        yield Spans(row[keep], first[keep], last[keep], f[keep])
 
 
 def iter_hits(tri_uv: np.ndarray, height: int, width: int, strict: bool = True,
@@ -68,51 +151,43 @@ def iter_hits(tri_uv: np.ndarray, height: int, width: int, strict: bool = True,
     ``strict=True`` keeps centres strictly inside (a centre on a shared edge is hit by
     neither triangle: no double counting); ``strict=False`` keeps the boundary too
     (no cracks, but shared-edge centres are hit twice). Degenerate triangles hit nothing.
-    Candidates are the texels of each triangle's bounding box, or with ``spans`` of each row's
-    span (:func:`_row_spans`): a long, thin triangle (a fan of an ear-clipped outline) then
-    costs its area, not its box's, and a small one a few rows' overhead. Same hits either way.
+    Candidates are the texels of each triangle's bounding box, or with ``spans`` only the
+    texels of its runs (:func:`iter_spans`): a long, thin triangle (a fan of an ear-clipped
+    outline) then costs its area, not its box's. Same hits either way.
     """
-    px = uv_to_pixel(tri_uv, height, width)  # (F, 3, 2) (col, row)
-    lo = np.ceil(px.min(1) - 1e-12).astype(np.int64)
-    hi = np.floor(px.max(1) + 1e-12).astype(np.int64)
-    lo = np.maximum(lo, 0)
-    hi[:, 0] = np.minimum(hi[:, 0], width - 1)
-    hi[:, 1] = np.minimum(hi[:, 1], height - 1)
-    size = np.maximum(hi - lo + 1, 0)
-    a, b, c = px[:, 0], px[:, 1], px[:, 2]
-    e1, e2 = b - a, c - a
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    size[np.abs(det) < 1e-14] = 0
+    if spans:
+        s = _setup(tri_uv, height, width)
+        for run in _iter_spans(s, BARY_TOL if strict else -BARY_TOL):
+            n = run.last - run.first + 1
+            cum = np.cumsum(n)
+            lo = 0
+            while lo < len(n):  # chunks of runs of at most CHUNK texels (or one run)
+                hi = max(int(np.searchsorted(cum, (cum[lo - 1] if lo else 0) + CHUNK, side="right")), lo + 1)
+                sl, lo = slice(lo, hi), hi
+                k = n[sl]
+                f, row = np.repeat(run.face[sl], k), np.repeat(run.row[sl], k)
+                col = np.repeat(run.first[sl], k) + np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)
+                yield Hits(row, col, f, np.stack(_bary(s, f, row, col), 1))
+        return
+    s = _setup(tri_uv, height, width)
     tol = BARY_TOL if strict else -BARY_TOL
-    rows = np.where(size[:, 0] > 0, size[:, 1], 0)
-    # chunks bound the candidates: a box's texels, or a span bound (rows sampled at integers
-    # sum to the area within one widest row, each span padded by at most a texel or two)
-    work = (np.abs(det) / 2 + 2 * rows + size[:, 0]).astype(np.int64) * (rows > 0) if spans else rows * size[:, 0]
-    cum = np.cumsum(work)
+    width_ = np.maximum(s.hi[:, 0] - s.lo[:, 0] + 1, 0)
+    cum = np.cumsum(s.rows * width_)
     start = 0
-    while start < len(rows):
+    while start < len(s.rows):
         base = cum[start - 1] if start else 0
         stop = max(int(np.searchsorted(cum, base + CHUNK, side="right")), start + 1)
         faces = np.arange(start, stop)
         start = stop
-        nr = rows[faces]
+        nr = s.rows[faces]
         if nr.sum() == 0:
             continue
         f = np.repeat(faces, nr)
-        row = lo[f, 1] + np.arange(int(nr.sum())) - np.repeat(np.cumsum(nr) - nr, nr)
-        if spans:
-            first, last = _row_spans(a[f], b[f], c[f], row, lo[f, 0], hi[f, 0])
-        else:
-            first, last = lo[f, 0], hi[f, 0]
-        n = np.maximum(last - first + 1, 0)
-        if n.sum() == 0:
-            continue
-        f, row, first = np.repeat(f, n), np.repeat(row, n), np.repeat(first, n)
+        row = s.lo[f, 1] + np.arange(int(nr.sum())) - np.repeat(np.cumsum(nr) - nr, nr)
+        n = width_[f]
+        f, row, first = np.repeat(f, n), np.repeat(row, n), np.repeat(s.lo[f, 0], n)
         col = first + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-        dx, dy = col - a[f, 0], row - a[f, 1]
-        b1 = (dx * e2[f, 1] - dy * e2[f, 0]) / det[f]
-        b2 = (e1[f, 0] * dy - e1[f, 1] * dx) / det[f]
-        b0 = 1.0 - b1 - b2
+        b0, b1, b2 = _bary(s, f, row, col)
         inside = (b0 > tol) & (b1 > tol) & (b2 > tol)
         yield Hits(row[inside], col[inside], f[inside], np.stack([b0, b1, b2], 1)[inside])
 
