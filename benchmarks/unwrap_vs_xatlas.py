@@ -270,7 +270,7 @@ def section(results: list[dict], args) -> str:
             f"{o['flipped_faces']} / {x['flipped_faces']} | {o['uv_overlap_percent']:.3f} / {x['uv_overlap_percent']:.3f} | "
             f"{o['utilization']:.2f} / {x['utilization']:.2f} | {o['timings']['unwrap_total']:.1f} / {x['seconds']:.1f} | "
             f"{o['fallback_area_fraction']:.3f} | {', '.join(missed) or 'none'} |")
-    stages = ("prepare", "assign", "clean", "whole", "flatten", "relax", "slits", "split", "pack")
+    stages = ("prepare", "assign", "clean", "whole", "flatten", "relax", "slits", "merge", "split", "pack")
     lines += ["", "Ours, seconds per stage (after the fit):", "",
               "| mesh | fit s | " + " | ".join(stages) + " | texture | write | peak RSS MB |",
               "|---|---|" + "---|" * (len(stages) + 3)]

@@ -96,12 +96,17 @@ class Assignment:
         far: (F,) bool: every sample farther than ``FAR_TOL`` from every chart.
         distance: (F,) mean distance of the face's samples to their nearest chart.
         stats: JSON-friendly counts.
+        reach: (F, K) bool: chart ``k`` competes (lies within ``NEAR_TOL`` of the nearest
+            chart) at half the face's samples or more; every chart for a far face. The
+            charts that could label the face as well as its own: where region borders may
+            move (:mod:`texture.borders`).
     """
 
     label: np.ndarray
     far: np.ndarray
     distance: np.ndarray
     stats: dict
+    reach: np.ndarray
 
 
 def face_samples(vertices: np.ndarray, faces: np.ndarray, bary: np.ndarray = SAMPLES_BARY) -> np.ndarray:
@@ -174,7 +179,7 @@ def assign_faces(vertices: np.ndarray, faces: np.ndarray, surfaces: list[ChartSu
         far = sub.far[src]
         stats = {**sub.stats, "labelled_faces": int(len(chosen)), "far_faces": int(far.sum()),
                  "faces_per_chart": np.bincount(sub.label[src], minlength=len(surfaces)).tolist()}
-        return Assignment(sub.label[src], far, sub.distance[src], stats)
+        return Assignment(sub.label[src], far, sub.distance[src], stats, sub.reach[src])
     bary = SAMPLES_BARY if len(faces) * len(SAMPLES_BARY) <= max_samples else SAMPLES_BARY[:1]
     F, S, K = len(faces), len(bary), len(surfaces)
     pts = face_samples(vertices, faces, bary).reshape(-1, 3)
@@ -204,8 +209,11 @@ def assign_faces(vertices: np.ndarray, faces: np.ndarray, surfaces: list[ChartSu
     plain = np.argmin(dist, axis=1).reshape(F, S)
     # far faces: the chart nearest to the centroid (sample 0) instead of the depth vote
     label[far] = plain[far, 0]
+    reach = 2 * competing.reshape(F, S, K).sum(1) >= S
+    reach[far] = True
+    reach[np.arange(F), label] = True
     stats = {"samples_per_face": S, "labelled_faces": F, "near_tol": near_tol, "far_tol": far_tol,
              "far_faces": int(far.sum()),
              "depth_vote_changed_samples": int((vote != plain.ravel()).sum()),
              "faces_per_chart": np.bincount(label, minlength=K).tolist()}
-    return Assignment(label.astype(np.int64), far, face_nearest.mean(1), stats)
+    return Assignment(label.astype(np.int64), far, face_nearest.mean(1), stats, reach)

@@ -10,13 +10,17 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
    A connected component none of whose faces comes within ``FAR_TOL`` of a chart is a
    *fallback* component: it becomes its own region, flattened the same classical way
    (cut to a disk, Tutte, SLIM), and ``fallback_area_fraction`` reports its share.
-3. ``clean``: small regions merged into their longest-border neighbour (:mod:`texture.regions`).
+3. ``clean``: one-face teeth smoothed away, chart borders moved within the charts' overlap
+   to where they are shortest (:mod:`texture.borders`), small regions merged into their
+   longest-border neighbour (:mod:`texture.regions`).
 4. ``flatten``: each region split at pinches and cut to a disk, embedded by Tutte
    (:mod:`texture.flatten`), scaled so its UV area equals its 3D area (unit-ball frame).
    A region that cannot be cut to a disk is split in two across its longest axis.
 5. ``relax``: SLIM toward an isometry (:func:`texture.relax.relax_meshes`), all islands
    at the one scale above (so one texel density), border crossings prevented; each
    island's flips and boundary crossings are counted afterwards.
+   ``merge``: neighbouring islands whose union flattens within ``slit_target`` with
+   shorter seams are joined (:mod:`texture.merge`).
 6. ``split``: islands above ``target_distortion`` halved and re-flattened; islands too long
    to pack densely halved across their length, UVs kept (:mod:`texture.unwrap_islands`).
 7. ``pack``: the islands turned (and, below ``pack_target``, halved) as packs best
@@ -42,6 +46,8 @@ from mnacore.triangles import signed_areas, triangle_areas
 from mnacore.uvmesh import UVMesh, weld_ids
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
+from .borders import shortest_borders
+from .merge import merge_islands
 from .meshprep import prepare_mesh
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
 from .unwrap_islands import (
@@ -66,6 +72,9 @@ class UnwrapConfig:
     """Regions below this fraction of their component's area merge into a neighbour."""
     smooth_passes: int = 20
     """Most border-smoothing sweeps before merging (:func:`texture.regions.smooth_borders`; 0 = off)."""
+    shortest_borders: bool = True
+    """Move chart borders, within the charts' overlap, to where they are shortest
+    (:func:`texture.borders.shortest_borders`)."""
     near_tol: float = NEAR_TOL
     """Charts within this of the nearest (unit-ball frame) compete on domain depth."""
     far_tol: float = FAR_TOL
@@ -92,6 +101,10 @@ class UnwrapConfig:
     get slits (:mod:`texture.slits`)."""
     max_slits: int = 8
     """Most slits per island."""
+    merge_max_faces: int = 60_000
+    """Neighbouring islands whose union flattens within ``slit_target`` with shorter seams
+    are merged (:mod:`texture.merge`); unions above this many faces are not tried (a trial
+    flattens both again: time only; 0 = off)."""
     whole_max_faces: int = 5_000
     """Components the charts split into several regions are first tried whole (one island)
     when they have at most this many faces (:func:`_whole_components`)."""
@@ -247,8 +260,11 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t0 = time.perf_counter()
     adj = face_adjacency(xyz, prep.work_faces)
     label, smoothed = smooth_borders(label, adj, cfg.smooth_passes)
+    border_stats = {}
+    if cfg.shortest_borders:
+        label, border_stats = shortest_borders(label, asg.reach, adj)
     label, clean_stats = clean_labels(label, area, prep.component, adj, cfg.min_fraction)
-    clean_stats["smoothed_faces"] = smoothed
+    clean_stats.update(smoothed_faces=smoothed, **border_stats)
     reg = regions(label, adj)
     t["clean"] = time.perf_counter() - t0
 
@@ -262,6 +278,9 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     t["slits"] = time.perf_counter() - t0
     islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), prep.component)
     fstats["whole_preferred"] = swapped
+    t0 = time.perf_counter()
+    islands, merge_stats = merge_islands(islands, xyz, prep.work_faces, adj, cfg)
+    t["merge"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
     islands, long_stats = split_long_islands(islands, prep.component, cfg)
@@ -277,7 +296,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
                   "fallback_components": int((~reached).sum()), "fallback_faces": int(fallback.sum()),
                   "fallback_area_fraction": float(area[fallback].sum() / total)}
     stats = {"prepare": prep.stats, "assignment": assignment, "regions": clean_stats, "islands": len(islands),
-             "flatten": fstats, "relax": relax_stats, "slits": slit_stats, "splits": split_stats,
+             "flatten": fstats, "relax": relax_stats, "slits": slit_stats, "merge": merge_stats, "splits": split_stats,
              "pack": {**_pack_stats(packing), "layout": layout_stats}, **out_stats, "islands_reflected": mirrored, "config": asdict(cfg),
              "timings": t}
     return Unwrap(mesh, face_island, stats)

@@ -1,0 +1,106 @@
+"""Shorter seams from the segmentation: chart borders moved to their shortest place within the
+charts' overlap (texture.borders), and neighbouring islands merged where their union flattens
+as well (texture.merge). Closed forms: a straight border across a unit sheet is 1 long; the
+two borders between the halves of a cylinder of height 1 are 2 long, and the one cut that
+opens the whole cylinder at least 1."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from test_unwrap import cylinder
+
+from mna import shapes
+from texture.borders import border_length, shortest_borders
+from texture.merge import interior_edges, island_seam, merge_islands
+from texture.regions import face_adjacency
+from texture.relax import energy_excess
+from texture.unwrap import UnwrapConfig
+from texture.unwrap_islands import flatten_region, relax_islands
+
+
+def _wavy_sheet_labels(resolution=41):
+    sheet = shapes.sheet(size=1.0, resolution=resolution)
+    v, f = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    c = v[f].mean(1)
+    label = np.where(c[:, 0] < 0.1 * np.sin(6 * np.pi * c[:, 1]), 0, 1)
+    return v, f, c, label
+
+
+def test_shortest_borders_straighten_a_wavy_border_within_the_overlap():
+    """A border waving +-0.1 across a unit sheet, both charts reaching the band |x| < 0.2:
+    the cut puts it on a straight grid line (length exactly 1, the sheet's side), moves no
+    face outside the band, and gives no face a chart that does not reach it."""
+    v, f, c, label = _wavy_sheet_labels()
+    adj = face_adjacency(v, f)
+    reach = np.zeros((len(f), 2), bool)
+    reach[np.arange(len(f)), label] = True
+    band = np.abs(c[:, 0]) < 0.2
+    reach[band] = True
+    wavy = border_length(label, adj)
+    out, st = shortest_borders(label, reach, adj)
+    assert wavy > 1.5
+    assert st["border_length_before"] == wavy
+    assert border_length(out, adj) == st["border_length"]
+    np.testing.assert_allclose(st["border_length"], 1.0, atol=1e-9)
+    assert (out[~band] == label[~band]).all()
+    assert reach[np.arange(len(f)), out].all()
+    # the border is one straight vertical line: every row of cells splits at the same x
+    left = c[out == 0, 0].max()
+    assert (c[out == 1, 0] > left).all()
+
+
+def test_shortest_borders_keep_labels_where_charts_do_not_overlap():
+    v, f, _, label = _wavy_sheet_labels(21)
+    adj = face_adjacency(v, f)
+    reach = np.zeros((len(f), 3), bool)  # a third chart, labelling nothing
+    reach[np.arange(len(f)), label] = True
+    out, st = shortest_borders(label, reach, adj)
+    assert (out == label).all() and st["border_length"] == st["border_length_before"]
+    # labels beyond the charts (a fallback component's) never move, even where all charts reach
+    fallback = np.where(label == 1, 7, label)
+    out, _ = shortest_borders(fallback, np.ones((len(f), 3), bool), adj)
+    assert (out[fallback == 7] == 7).all()
+
+
+def _halves(mesh, cfg):
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    c = v[f].mean(1)
+    islands = []
+    for lab, sel in enumerate((np.flatnonzero(c[:, 1] >= 0), np.flatnonzero(c[:, 1] < 0))):
+        islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
+    relax_islands(islands, cfg)
+    return v, f, islands
+
+
+def test_merge_joins_the_halves_of_a_cylinder_into_one_isometric_island():
+    """Two half-cylinders (height 1) share two straight borders: seams 2 in all. Their union
+    is developable: it flattens isometrically once cut, with a cut of at least the height."""
+    cfg = UnwrapConfig(slim_iterations=100)
+    v, f, islands = _halves(cylinder(rows=8, sections=32), cfg)
+    interior = interior_edges(f)
+    assert len(islands) == 2
+    np.testing.assert_allclose(sum(island_seam(i, interior) for i in islands), 2.0, atol=1e-9)
+    merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    assert len(merged) == 1 and st["merges"] == 1
+    isl = merged[0]
+    assert sorted(isl.work_faces.tolist()) == list(range(len(f)))
+    assert energy_excess(isl.xyz, isl.uv, isl.faces) < 1e-3
+    seam = island_seam(isl, interior)
+    assert 1.0 - 1e-9 <= seam < 2.0 - 0.5
+    np.testing.assert_allclose(st["seam_removed"], 2.0 - seam, atol=1e-9)
+
+
+def test_merge_refuses_a_union_that_would_distort():
+    """The two hemispheres of a sphere: their union, cut open without slits, is far from
+    isometric, so they stay two islands (and unchanged)."""
+    cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=0)
+    v, f, islands = _halves(shapes.sphere(subdivisions=3), cfg)
+    before = [i.uv.copy() for i in islands]
+    merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    assert st["merges"] == 0 and st["tried"] == 1
+    assert len(merged) == 2 and all((m.uv == b).all() for m, b in zip(merged, before))
+    assert st["trials"][0]["excess"] is None or st["trials"][0]["excess"] > cfg.slit_target
+    # off: nothing tried
+    _, off = merge_islands(islands, v, f, face_adjacency(v, f), replace(cfg, merge_max_faces=0))
+    assert off["tried"] == 0

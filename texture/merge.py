@@ -1,0 +1,141 @@
+"""Merging neighbouring islands whose union flattens as well: fewer seams where the charts cut more than needed.
+
+The charts are fitted for the reconstruction, not for seams: three charts on a torus leave
+four regions whose borders, laid end to end, are three times the two loops that cut a torus
+to a disk, and each region flattens far below the distortion the unwrap accepts. So after
+the regions are flattened, relaxed and slit, :func:`merge_islands` tries to join neighbours:
+the union of two islands that share a border is cut to a disk, embedded, relaxed and slit
+like any region (:func:`texture.unwrap_islands.flatten_region`), and it replaces the two when
+
+- every island it gives stays within ``cfg.slit_target`` energy excess: the bound every
+  island of the unwrap is flattened to (slits are cut up to it, a component is kept whole
+  within it); and
+- its seams are shorter than the two islands' together (a union that is not a disk needs
+  cuts, and slits add seams: the border it removes must pay for them).
+
+Neighbours are tried in order of the border they share (longest first), in rounds: each
+round a matching (no island in two pairs) is flattened at once (in parallel processes), the
+accepted pairs are merged, and a pair that failed is not tried again unless one side changed.
+A union above ``cfg.merge_max_faces`` faces is not tried (for time only: a trial costs a
+flattening of both islands again).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .relax import energy_excess
+from .unwrap_islands import Island, flatten_region, relax_islands, slit_islands
+
+#: slits a union may take to come within the bound (each adds a seam, and costs a relaxation)
+MERGE_SLITS = 2
+#: SLIM iterations of a trial: stopping early only makes the bound harder to meet
+MERGE_ITERATIONS = 60
+
+
+def interior_edges(work_faces: np.ndarray) -> set:
+    """Edges (sorted working-vertex pairs) of the working mesh used by two faces: where an
+    island border is a seam (an edge used once is the surface's own open border)."""
+    e = np.sort(np.concatenate([work_faces[:, [0, 1]], work_faces[:, [1, 2]], work_faces[:, [2, 0]]]), axis=1)
+    keys, count = np.unique(e, axis=0, return_counts=True)
+    return set(map(tuple, keys[count >= 2].tolist()))
+
+
+def island_seam(isl: Island, interior: set) -> float:
+    """Half the 3D length of ``isl``'s border edges that are seams (each seam edge borders two
+    island sides: here or in a neighbour), as the harness counts seams."""
+    f = isl.faces
+    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    key = np.sort(he, axis=1)
+    _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    border = he[count[inv.ravel()] == 1]
+    if not len(border):
+        return 0.0
+    work = np.sort(isl.work_vertex[border], axis=1)
+    seam = np.array([tuple(w) in interior for w in work.tolist()])
+    length = np.linalg.norm(isl.xyz[border[:, 0]] - isl.xyz[border[:, 1]], axis=1)
+    return 0.5 * float(length[seam].sum())
+
+
+def _shared_borders(islands: list[Island], adj, n_faces: int) -> dict[tuple[int, int], float]:
+    """(island i, island j) with i < j -> 3D length of the working-mesh edges between them."""
+    owner = np.full(n_faces, -1)
+    for k, isl in enumerate(islands):
+        owner[isl.work_faces] = k
+    a, b = owner[adj.a], owner[adj.b]
+    cross = (a != b) & (a >= 0) & (b >= 0)
+    i, j = np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])
+    out: dict[tuple[int, int], float] = {}
+    for p, q, w in zip(i.tolist(), j.tolist(), adj.length[cross].tolist()):
+        out[(p, q)] = out.get((p, q), 0.0) + w
+    return out
+
+
+def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[int, int]]:
+    """This round's pairs: neighbours by shared border, longest first, each island in one pair
+    at most, none that failed before, none above ``cfg.merge_max_faces`` faces."""
+    busy: set[int] = set()
+    out = []
+    for p, q in sorted(shared, key=lambda pq: (-shared[pq], pq)):
+        if (p in busy or q in busy or (id(islands[p]), id(islands[q])) in failed
+                or islands[p].kept_start or islands[q].kept_start
+                or len(islands[p].faces) + len(islands[q].faces) > cfg.merge_max_faces):
+            continue
+        busy.update((p, q))
+        out.append((p, q))
+    return out
+
+
+def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: set, seam_pq: float) -> list[Island]:
+    """Islands p and q flattened as one region (cut to a disk, Tutte), or [] where that fails
+    or its cuts alone already cost the seams the union would save (slits only add more)."""
+    sel = np.concatenate([islands[p].work_faces, islands[q].work_faces])
+    try:
+        new = flatten_region(xyz, work_faces[sel], sel, islands[p].label, 0, {"region_splits": 0, "cut_edges": 0})
+    except (RuntimeError, ValueError, KeyError, IndexError):
+        return []
+    return new if sum(island_seam(i, interior) for i in new) < seam_pq else []
+
+
+def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg) -> tuple[list[Island], dict]:
+    """(islands, stats): see the module docstring. ``adj``: the working mesh's face adjacency
+    (:func:`texture.regions.face_adjacency`); ``cfg``: a :class:`texture.unwrap.UnwrapConfig`."""
+    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": []}
+    if cfg.merge_max_faces <= 0 or len(islands) < 2:
+        return islands, st
+    trial_cfg = replace(cfg, max_slits=min(cfg.max_slits, MERGE_SLITS),
+                        slim_iterations=min(cfg.slim_iterations, MERGE_ITERATIONS))
+    interior = interior_edges(work_faces)
+    seam = [island_seam(isl, interior) for isl in islands]
+    failed: set[tuple[int, int]] = set()  # pairs of islands (by identity) whose union failed
+    for _ in range(len(islands)):
+        shared = _shared_borders(islands, adj, len(work_faces))
+        todo = _pairs(islands, shared, failed, cfg)
+        if not todo:
+            break
+        trials = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q]) for p, q in todo]
+        flat = [isl for t in trials for isl in t]
+        relax_islands(flat, trial_cfg)
+        slit_islands(flat, trial_cfg)
+        st["tried"] += len(todo)
+        drop, add = set(), []
+        for (p, q), new in zip(todo, trials):
+            excess = [float(energy_excess(i.xyz, i.uv, i.faces)) for i in new]
+            new_seam = sum(island_seam(i, interior) for i in new) if new else float("inf")
+            ok = bool(new) and not any(i.kept_start for i in new) and max(excess) <= cfg.slit_target
+            st["trials"].append({"faces": len(islands[p].faces) + len(islands[q].faces), "excess": max(excess, default=None),
+                                 "seam_before": seam[p] + seam[q], "seam_after": new_seam if new else None, "merged": ok and new_seam < seam[p] + seam[q]})
+            if st["trials"][-1]["merged"]:
+                drop.update((p, q))
+                add += new
+                st["merges"] += 1
+                st["seam_removed"] += seam[p] + seam[q] - new_seam
+            else:
+                failed.add((id(islands[p]), id(islands[q])))
+        if not add:
+            break
+        keep = [k for k in range(len(islands)) if k not in drop]
+        islands = [islands[k] for k in keep] + add
+        seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
+    return islands, st
