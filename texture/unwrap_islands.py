@@ -356,7 +356,7 @@ def _one_piece(adj, mask: np.ndarray) -> bool:
 LONG_CUTS = np.linspace(0.3, 0.7, 9)
 
 
-def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS) -> tuple[list[Island], float] | None:
+def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> tuple[list[Island], float] | None:
     """(the island cut in two, the cut's 3D length), or None where no cut works.
 
     The cut runs across the island's principal UV axis (``along``: along it, i.e. across the
@@ -364,7 +364,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS) -> tuple[list
     island's 3D area before the cut) with the shortest cut (ties: the more even halves) whose
     two halves are each one piece. The halves keep their UVs: parts of a flip-free,
     overlap-free island stay so, and the input's faces are not changed (an unwrap may only
-    cut along edges)."""
+    cut along edges). ``adj``: the island's face adjacency, when the caller has it."""
     from .regions import face_adjacency
 
     axis = _principal_axis(isl.uv, minor=along)
@@ -372,7 +372,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS) -> tuple[list
     area = triangle_areas(isl.xyz, isl.faces)
     order = np.argsort(s, kind="stable")
     cum = np.cumsum(area[order]) / area.sum()
-    adj = face_adjacency(isl.xyz, isl.faces)
+    adj = face_adjacency(isl.xyz, isl.faces) if adj is None else adj
     best = None
     for q in sorted(cuts, key=lambda q: abs(q - 0.5)):  # equal cuts: the more even one
         lo = np.zeros(len(isl.faces), bool)

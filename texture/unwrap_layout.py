@@ -39,7 +39,9 @@ from mnacore.triangles import triangle_areas
 
 from .outlines import island_outlines
 from .pack import Packing, pack_islands
+from .regions import face_adjacency
 from .scale_search import estimate_layouts, plan_layouts
+from .similarity import similarity_fit
 from .unwrap_islands import LONG_CUTS, Island, halve_across, island_parts, may_halve
 
 #: (turn every island to its minimum-area bounding rectangle first, xatlas PackOptions)
@@ -98,13 +100,15 @@ def island_arrays(islands: list[Island]) -> tuple[np.ndarray, np.ndarray, np.nda
             np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands]))
 
 
-def outline_arrays(islands: list[Island], cache: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def outline_arrays(islands: list[Island], cache: dict, index: list | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(uv, faces, island) of the islands' outlines only (:func:`texture.outlines.island_outlines`:
     the same region per island, border vertices only): what xatlas needs for a guess
     (:func:`texture.scale_search.estimate_layouts`), without the faces inside (a million
     at 1M input faces, pickled to a worker per candidate). ``cache`` keeps each island's
     outline by its faces array: a turned island shares them, and a rotation keeps a
-    triangulation valid."""
+    triangulation valid. ``index``: a list that receives each island's outline vertices
+    (indices into its ``uv``), in the order of the returned ``uv``."""
     uvs, faces, owner = [], [], []
     offset = 0
     for k, isl in enumerate(islands):
@@ -114,6 +118,8 @@ def outline_arrays(islands: list[Island], cache: dict) -> tuple[np.ndarray, np.n
             vid, inv = np.unique(tri, return_inverse=True)
             hit = cache[id(isl.faces)] = (isl.faces, vid, inv.reshape(-1, 3))
         uvs.append(isl.uv[hit[1]])
+        if index is not None:
+            index.append(hit[1])
         faces.append(hit[2] + offset)
         owner.append(np.full(len(hit[2]), k))
         offset += len(hit[1])
@@ -136,13 +142,30 @@ class _Packed:
     islands: list[Island]
     mode: int
     packing: Packing
+    """of the islands' outlines (turned as in ``mode``)"""
+    index: list[np.ndarray]
+    """each island's outline vertices"""
 
     @property
     def utilization(self) -> float:
         return self.packing.utilization
 
 
-def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, floor: float = 0.0) -> _Packed | None:
+def _whole_islands(islands: list[Island], index: list[np.ndarray], packing: Packing) -> Packing:
+    """The packing of the islands' outlines (vertices ``index`` of each island) carried to
+    all their vertices: each island moved by the rotation and translation that moved its
+    outline (the packer moves islands rigidly at one scale and never mirrors one)."""
+    uv, start = [], 0
+    for isl, vid in zip(islands, index):
+        src, dst = isl.uv[vid], packing.uv[start:start + len(vid)]
+        start += len(vid)
+        fit = similarity_fit(src, dst)
+        uv.append(packing.scale * (isl.uv - src.mean(0)) @ fit.rotation.T + dst.mean(0))
+    return replace(packing, uv=np.concatenate(uv))
+
+
+def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict,
+                 floor: float = 0.0) -> _Packed | None:
     """The best of the (islands, mode index) pairs packed for real (:func:`texture.pack.pack_islands`
     from its coarse plan), or None if none packs above ``floor``.
 
@@ -151,19 +174,25 @@ def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, floor: floa
     packed), so the layouts are compared packed. Keeping islands unmirrored only lowers a
     plan's utilisation, so plans are packed best first, and those whose coarse utilisation
     cannot beat ``floor`` or the best packing so far are not packed (each packing costs
-    several coarse searches)."""
+    several coarse searches).
+
+    Only the islands' outlines are packed (the same regions: what the packer hands xatlas
+    and checks anyway), and the winner's placement is carried to all its vertices
+    (:func:`_whole_islands`): at 1M faces every packing of the whole faces cost seconds
+    in areas, outlines and worker traffic alone."""
     kw = {"resolution": cfg.resolution, "padding": cfg.padding}
     plans = []
     for layout, m in zip(layouts, modes):
-        arrays = island_arrays(turned(layout, PACK_MODES[m]))
+        index: list = []
+        arrays = outline_arrays(turned(layout, PACK_MODES[m]), cache, index)
         plan = plan_layouts([arrays], candidates=(PACK_MODES[m][1],), **kw)[0]
         if plan is not None:
-            plans.append((plan, arrays, layout, m))
+            plans.append((plan, arrays, index, layout, m))
     best = None
-    for plan, arrays, layout, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
+    for plan, arrays, index, layout, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
         if plan.utilization <= max(floor, best.utilization if best is not None else 0.0):
             break
-        got = _Packed(layout, m, pack_islands(*arrays, plan=plan, **kw))
+        got = _Packed(layout, m, pack_islands(*arrays, plan=plan, **kw), index)
         if best is None or got.utilization > best.utilization:
             best = got
     return best
@@ -180,9 +209,10 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) ->
         # ordinary halvings are those :func:`may_halve` allows; first seams, parts of one island
         if not (count == 1 < cfg.long_max_islands if first_seam else may_halve(count, cfg)):
             continue
+        adj = face_adjacency(islands[k].xyz, islands[k].faces)  # once for its six halvings
         for along in (False, True):
             for where, cuts in zip(("middle", "low_quarter", "high_quarter"), PACK_CUTS):
-                halved = halve_across(islands[k], along, cuts)
+                halved = halve_across(islands[k], along, cuts, adj)
                 if halved is not None:
                     out.append((islands[:k] + islands[k + 1:] + halved[0],
                                 {"island_rank": rank, "along_axis": along, "at": where, "cut_length": halved[1],
@@ -204,7 +234,7 @@ def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float, ca
         guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
     top = guesses[:PACK_SEARCHED]
-    best = _best_packed([cands[i][0] for _, i, _ in top], [m for _, _, m in top], cfg, floor)
+    best = _best_packed([cands[i][0] for _, i, _ in top], [m for _, _, m in top], cfg, cache, floor)
     if best is None:
         return None
     return best, next(d for c, d in cands if c is best.islands)
@@ -214,7 +244,7 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
     connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig`."""
     cache: dict = {}  # outlines of the islands tried (:func:`outline_arrays`)
-    best = _best_packed([islands] * len(PACK_MODES), list(range(len(PACK_MODES))), cfg)
+    best = _best_packed([islands] * len(PACK_MODES), list(range(len(PACK_MODES))), cfg, cache)
     if best is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
         return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
                                                   padding=cfg.padding), {"mode": 0, "halvings": []})
@@ -231,4 +261,5 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         best = got[0]
         stats["halvings"].append({**got[1], "utilization": best.utilization})
     stats["mode"] = best.mode
-    return LayoutChoice(turned(best.islands, PACK_MODES[best.mode]), best.packing, stats)
+    final = turned(best.islands, PACK_MODES[best.mode])
+    return LayoutChoice(final, _whole_islands(final, best.index, best.packing), stats)
