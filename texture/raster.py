@@ -126,19 +126,30 @@ def iter_spans(tri_uv: np.ndarray, height: int, width: int, strict: bool = True)
     return _iter_spans(_setup(tri_uv, height, width), BARY_TOL if strict else -BARY_TOL)
 
 
-def _iter_spans(s: _Setup, tol: float) -> Iterator[Spans]:
-    cum = np.cumsum(s.rows)
+def _ramp(start: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """``start[i], start[i] + 1, ..., start[i] + count[i] - 1`` for every ``i``, concatenated."""
+    return np.repeat(start, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+
+
+def _face_rows(s: _Setup, cost: np.ndarray, budget: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """(triangle, row) of every row of every triangle's box, in chunks of about ``budget``
+    ``cost`` (per triangle; a chunk holds one triangle at least)."""
+    cum = np.cumsum(cost)
     start = 0
     while start < len(s.rows):
         base = cum[start - 1] if start else 0
-        stop = max(int(np.searchsorted(cum, base + CHUNK // 8, side="right")), start + 1)
+        stop = max(int(np.searchsorted(cum, base + budget, side="right")), start + 1)
         faces = np.arange(start, stop)
         start = stop
         nr = s.rows[faces]
         if nr.sum() == 0:
             continue
         f = np.repeat(faces, nr)
-        row = s.lo[f, 1] + np.arange(int(nr.sum())) - np.repeat(np.cumsum(nr) - nr, nr)
+        yield f, _ramp(s.lo[faces, 1], nr)
+
+
+def _iter_spans(s: _Setup, tol: float) -> Iterator[Spans]:
+    for f, row in _face_rows(s, s.rows, CHUNK // 8):
         first, last = _row_runs(s, f, row, tol)
         keep = first <= last
         yield Spans(row[keep], first[keep], last[keep], f[keep])
@@ -155,38 +166,25 @@ def iter_hits(tri_uv: np.ndarray, height: int, width: int, strict: bool = True,
     texels of its runs (:func:`iter_spans`): a long, thin triangle (a fan of an ear-clipped
     outline) then costs its area, not its box's. Same hits either way.
     """
+    s = _setup(tri_uv, height, width)
+    tol = BARY_TOL if strict else -BARY_TOL
     if spans:
-        s = _setup(tri_uv, height, width)
-        for run in _iter_spans(s, BARY_TOL if strict else -BARY_TOL):
+        for run in _iter_spans(s, tol):
             n = run.last - run.first + 1
             cum = np.cumsum(n)
             lo = 0
             while lo < len(n):  # chunks of runs of at most CHUNK texels (or one run)
                 hi = max(int(np.searchsorted(cum, (cum[lo - 1] if lo else 0) + CHUNK, side="right")), lo + 1)
                 sl, lo = slice(lo, hi), hi
-                k = n[sl]
-                f, row = np.repeat(run.face[sl], k), np.repeat(run.row[sl], k)
-                col = np.repeat(run.first[sl], k) + np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)
+                f, row = np.repeat(run.face[sl], n[sl]), np.repeat(run.row[sl], n[sl])
+                col = _ramp(run.first[sl], n[sl])
                 yield Hits(row, col, f, np.stack(_bary(s, f, row, col), 1))
         return
-    s = _setup(tri_uv, height, width)
-    tol = BARY_TOL if strict else -BARY_TOL
     width_ = np.maximum(s.hi[:, 0] - s.lo[:, 0] + 1, 0)
-    cum = np.cumsum(s.rows * width_)
-    start = 0
-    while start < len(s.rows):
-        base = cum[start - 1] if start else 0
-        stop = max(int(np.searchsorted(cum, base + CHUNK, side="right")), start + 1)
-        faces = np.arange(start, stop)
-        start = stop
-        nr = s.rows[faces]
-        if nr.sum() == 0:
-            continue
-        f = np.repeat(faces, nr)
-        row = s.lo[f, 1] + np.arange(int(nr.sum())) - np.repeat(np.cumsum(nr) - nr, nr)
+    for f, row in _face_rows(s, s.rows * width_, CHUNK):
         n = width_[f]
-        f, row, first = np.repeat(f, n), np.repeat(row, n), np.repeat(s.lo[f, 0], n)
-        col = first + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        col = _ramp(s.lo[f, 0], n)
+        f, row = np.repeat(f, n), np.repeat(row, n)
         b0, b1, b2 = _bary(s, f, row, col)
         inside = (b0 > tol) & (b1 > tol) & (b2 > tol)
         yield Hits(row[inside], col[inside], f[inside], np.stack([b0, b1, b2], 1)[inside])
