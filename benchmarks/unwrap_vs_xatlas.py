@@ -108,7 +108,7 @@ def run_one(mesh: Path, work: Path, steps: int, size: int, reuse: bool) -> dict:
     fit_metrics = json.loads((run / "metrics.json").read_text())
     return {"mesh": mesh.stem, "faces": len(inp.faces), "parts": int(face_components(inp.faces).max()) + 1,
             "fit_seconds": fit_seconds, "fit_steps": steps, "fscore_mesh": fit_metrics["fscore_mesh"],
-            "ours": {**doc["uv_metrics"], "islands": doc["islands"], "timings": doc["timings"],
+            "ours": {**doc["uv_metrics"], "islands": doc["uv_metrics"]["charts"], "timings": doc["timings"],
                      "fallback_area_fraction": doc["assignment"]["fallback_area_fraction"],
                      "far_area_fraction": doc["assignment"]["far_area_fraction"]},
             "xatlas": xa, "xatlas_fewest": sweep, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
@@ -171,7 +171,7 @@ def _child(kind: str, mesh: str, run: str, out: str, size: int) -> None:
     inp = load_unwrap_input(Path(mesh))
     if kind == "ours":
         doc = unwrap_to_folder(inp, Path(run), Path(out), size=size, padding=8)
-        row = {**doc["uv_metrics"], "islands": doc["islands"], "seconds": doc["timings"]["unwrap_total"],
+        row = {**doc["uv_metrics"], "islands": doc["uv_metrics"]["charts"], "seconds": doc["timings"]["unwrap_total"],
                "texture_write": doc["timings"]["texture"] + doc["timings"]["write"],
                "stages": {k: v for k, v in doc["timings"].items() if k.startswith("unwrap_")}}
     else:

@@ -7,7 +7,10 @@ centre, max radius 1) and UVs rescaled globally so total UV area = total 3D area
 
 Summary keys (example values in docs/texture.md):
 
-``charts``             connected UV islands (edge-connected in UV).
+``charts``             connected UV islands (edge-connected in UV) that cover some UV
+                       area. ``point_charts``: those that cover none (a degenerate input
+                       face parked on one UV point, :mod:`texture.unwrap`): they carry no
+                       texture, so they are not charts a user sees or packs.
 ``seam_length``        3D length of cut edges / sqrt(surface area). A cut edge is a UV
                        boundary edge that is not on the surface's open boundary; its two
                        sides are counted once (0.5 each).
@@ -264,7 +267,8 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     summary = {
         "faces": m.n_faces,
         "vertices": int(len(m.vertices)),
-        "charts": int(island.max() + 1),
+        "charts": int(len(np.unique(island[np.abs(geom.uv_area) > 0]))),
+        "point_charts": int(island.max() + 1 - len(np.unique(island[np.abs(geom.uv_area) > 0]))),
         "seam_length": _seam_length(m, weld, boundary) / np.sqrt(total_area),
         **_aggregates(geom),
         "flipped_faces": int(flipped.sum()),

@@ -259,3 +259,15 @@ def test_thin_plate_sheet_between_its_sides_is_undecided_not_folded():
     assert np.array_equal(m.folded, centre)
     assert m.summary["folded_area_percent"] == pytest.approx(100 * area, rel=1e-9)
     assert m.summary["orientation_undecided_area_percent"] == 0.0
+
+
+def test_a_face_parked_on_one_uv_point_is_not_a_chart():
+    """Two charts (the square's halves moved apart) plus a face whose three corners share one
+    UV point: it covers no texel and carries no texture, so 2 charts and 1 point chart."""
+    V = np.concatenate([SQUARE_V, SQUARE_V[[0, 2]], SQUARE_V[[0, 1, 3]]])
+    uv = np.concatenate([SQUARE_UV, SQUARE_UV[[0, 2]] + [0.0, 0.5], np.full((3, 2), 0.25)]) * 0.5
+    F = np.array([[0, 1, 2], [4, 5, 3], [6, 7, 8]])
+    s = measure(make_uv_mesh(V, F, uv)).summary
+    assert s["charts"] == 2 and s["point_charts"] == 1
+    s2 = measure(make_uv_mesh(V[:6], F[:2], uv[:6])).summary
+    assert s2["charts"] == 2 and s2["point_charts"] == 0

@@ -188,6 +188,8 @@ def test_nonmanifold_duplicated_and_degenerate_input_keep_every_face():
     np.testing.assert_array_equal(signed_areas(out.uv, out.faces[-2:]), 0.0)  # degenerate in UV too
     m = measure(out, reference=mesh).summary
     assert m["degenerate_uv_faces"] == 2 and np.isfinite(m["distortion_metric"]) and m["flipped_faces"] == 0
+    # the two degenerate faces sit on UV points of their own: not charts, counted apart
+    assert m["charts"] == res.stats["islands"] and m["point_charts"] == 2
     good = np.ones(len(f), bool)
     good[-2:] = False
     assert (signed_areas(out.uv, out.faces[good]) > 0).all()
