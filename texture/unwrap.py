@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -201,15 +202,14 @@ def _assigned_labels(xyz, prep, charts: ChartGrids, cfg: UnwrapConfig):
     return np.where(~reached[comp], charts.n_charts + comp, asg.label), asg, reached
 
 
-def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig) -> tuple[list, dict, dict]:
-    """(islands of the whole components and of every other region, flatten stats, timings)."""
-    t0 = time.perf_counter()
+def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig, stage) -> tuple[list, dict]:
+    """(islands of the whole components and of every other region, flatten stats)."""
+    stage("whole")
     comp = prep.component
     fstats = {"region_splits": 0, "cut_edges": 0}
     islands, whole = whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
     fstats["whole_components"] = len(whole)
-    t = {"whole": time.perf_counter() - t0}
-    t0 = time.perf_counter()
+    stage("flatten")
     order = np.argsort(reg, kind="stable")
     bounds = np.searchsorted(reg[order], np.arange(int(reg.max()) + 2))
     for r in range(int(reg.max()) + 1):
@@ -217,8 +217,7 @@ def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig) -> tuple[list, dict, di
         if comp[sel[0]] in whole:
             continue
         islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
-    t["flatten"] = time.perf_counter() - t0
-    return islands, fstats, t
+    return islands, fstats
 
 
 def _packed(islands: list, comp: np.ndarray, cfg: UnwrapConfig):
@@ -243,22 +242,42 @@ def _pack_stats(packing) -> dict:
             "padding": packing.padding}
 
 
-def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None) -> Unwrap:
-    """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring."""
+#: the stages of :func:`unwrap_mesh`, in order (``stats["timings"]`` keys; ``progress`` names)
+STAGES = ("prepare", "assign", "clean", "whole", "flatten", "relax", "slits", "merge", "split", "pack")
+
+
+class _Stages:
+    """Times the stages (one ends where the next starts) and tells ``progress`` each start."""
+
+    def __init__(self, progress: Callable[[str], None] | None):
+        self.timings: dict[str, float] = {}
+        self.progress, self.name, self.t0 = progress, None, 0.0
+
+    def __call__(self, name: str | None) -> None:
+        now = time.perf_counter()
+        if self.name is not None:
+            self.timings[self.name] = now - self.t0
+        self.name, self.t0 = name, now
+        if name is not None and self.progress is not None:
+            self.progress(name)
+
+
+def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None,
+                progress: Callable[[str], None] | None = None) -> Unwrap:
+    """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring.
+    ``progress``: called with each stage's name (:data:`STAGES`) as it starts."""
     cfg = cfg or UnwrapConfig()
-    t = {}
-    t0 = time.perf_counter()
+    stage = _Stages(progress)
+    stage("prepare")
     prep = prepare_mesh(vertices, faces)
     xyz = charts.normalization.apply(prep.work_vertices)
-    t["prepare"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
+    stage("assign")
     label, asg, reached = _assigned_labels(xyz, prep, charts, cfg)
     fallback = ~reached[prep.component]
     area = triangle_areas(xyz, prep.work_faces)
-    t["assign"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
+    stage("clean")
     adj = face_adjacency(xyz, prep.work_faces)
     label, smoothed = smooth_borders(label, adj, cfg.smooth_passes)
     border_stats = {}
@@ -267,30 +286,25 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     label, clean_stats = clean_labels(label, area, prep.component, adj, cfg.min_fraction)
     clean_stats.update(smoothed_faces=smoothed, **border_stats)
     reg = regions(label, adj)
-    t["clean"] = time.perf_counter() - t0
 
-    islands, fstats, t_flat = _flattened(xyz, prep, label, reg, cfg)
-    t.update(t_flat)
-    t0 = time.perf_counter()
+    islands, fstats = _flattened(xyz, prep, label, reg, cfg, stage)
+    stage("relax")
     relax_stats = relax_islands([isl for isl in islands if isl.label != WHOLE], cfg)
-    t["relax"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    stage("slits")
     slit_stats = slit_islands([isl for isl in islands if isl.label != WHOLE], cfg)
-    t["slits"] = time.perf_counter() - t0
     islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), prep.component)
     fstats["whole_preferred"] = swapped
-    t0 = time.perf_counter()
+    stage("merge")
     islands, merge_stats = merge_islands(islands, xyz, prep.work_faces, adj, cfg)
-    t["merge"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    stage("split")
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
     islands, long_stats = split_long_islands(islands, prep.component, cfg)
     split_stats.update(long_stats)
-    t["split"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
+    stage("pack")
     packing, islands, offsets, mirrored, layout_stats = _packed(islands, prep.component, cfg)
-    t["pack"] = time.perf_counter() - t0
+    stage(None)
+    t = stage.timings
     mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)
     total = float(area.sum())
     assignment = {**asg.stats, "far_area_fraction": float(area[asg.far].sum() / total),

@@ -106,10 +106,40 @@ def check_options(texture: str, size, padding) -> tuple[int, int]:
     return size, pad
 
 
+def _stage_bar(enabled: bool):
+    """A callable: each call names the stage that starts (None: all done); a tqdm bar on stderr
+    advancing a step per stage, or nothing when not ``enabled``."""
+    import sys
+
+    from tqdm.auto import tqdm
+
+    from .unwrap import STAGES
+
+    bar = tqdm(total=len(STAGES) + 3, desc="unwrap", unit="stage", file=sys.stderr, leave=False,
+               disable=not enabled, dynamic_ncols=True)
+    state = {"started": False, "closed": False}
+
+    def step(name: str | None) -> None:
+        if state["closed"]:
+            return
+        if state["started"]:
+            bar.update(1)
+        state["started"] = True
+        if name is None:
+            state["closed"] = True
+            bar.close()
+        else:
+            bar.set_postfix_str(name)
+
+    return step
+
+
 def unwrap_to_folder(inp: UnwrapInput, run: str | os.PathLike, out: str | os.PathLike, texture: str = "checker",
                      size: int | str = 2048, padding: int | str = 8, square_size: float | None = None,
-                     cfg: UnwrapConfig | None = None, extra: dict | None = None) -> dict:
-    """Unwrap ``inp`` with ``RUN``'s charts into ``OUT``; returns the ``unwrap.json`` content."""
+                     cfg: UnwrapConfig | None = None, extra: dict | None = None, progress: bool = False) -> dict:
+    """Unwrap ``inp`` with ``RUN``'s charts into ``OUT``; returns the ``unwrap.json`` content.
+    ``progress``: a bar on stderr that advances stage by stage (:data:`texture.unwrap.STAGES`,
+    then texture, write, measure), naming the stage running."""
     size, pad = check_options(texture, size, padding)
     charts = load_charts(Path(run) / "charts.npz")
     bake_source = None
@@ -118,26 +148,33 @@ def unwrap_to_folder(inp: UnwrapInput, run: str | os.PathLike, out: str | os.Pat
         source_colors(bake_source)  # fail before the slow part when there is nothing to bake
     cfg = cfg or UnwrapConfig()
     cfg.resolution, cfg.padding = size, pad
-    t0 = time.perf_counter()
-    result = unwrap_mesh(inp.vertices, inp.faces, charts, cfg)
-    t1 = time.perf_counter()
-    norm = charts.normalization
-    source = None
-    if texture == "bake":
-        source = bake_source.copy()
-        source.vertices = norm.apply(bake_source.vertices)
-    image = make_texture(texture, result.mesh.transformed(norm), size, pad, source, square_size)
-    t2 = time.perf_counter()
-    out = Path(out)
-    paths = export_textured(out, result.mesh, image)
-    t3 = time.perf_counter()
-    metrics = measure(result.mesh, reference=inp.mesh, normalization=norm)
-    timings = {**{f"unwrap_{k}": v for k, v in result.stats.pop("timings").items()},
-               "unwrap_total": t1 - t0, "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
-    doc = {"input": str(Path(inp.path).resolve()), "run": str(Path(run).resolve()),
-           "input_uv_replaced": inp.had_uv, "texture": texture, "size": size, "padding": pad,
-           "normalization": norm.to_json(), "charts": charts.n_charts,
-           **result.stats, "uv_metrics": metrics.summary, "timings": timings, "files": paths,
-           **(extra or {})}
+    bar = _stage_bar(progress)
+    try:
+        t0 = time.perf_counter()
+        result = unwrap_mesh(inp.vertices, inp.faces, charts, cfg, progress=bar)
+        t1 = time.perf_counter()
+        bar("texture")
+        norm = charts.normalization
+        source = None
+        if texture == "bake":
+            source = bake_source.copy()
+            source.vertices = norm.apply(bake_source.vertices)
+        image = make_texture(texture, result.mesh.transformed(norm), size, pad, source, square_size)
+        t2 = time.perf_counter()
+        out = Path(out)
+        bar("write")
+        paths = export_textured(out, result.mesh, image)
+        t3 = time.perf_counter()
+        bar("measure")
+        metrics = measure(result.mesh, reference=inp.mesh, normalization=norm)
+        timings = {**{f"unwrap_{k}": v for k, v in result.stats.pop("timings").items()},
+                   "unwrap_total": t1 - t0, "texture": t2 - t1, "write": t3 - t2, "harness": time.perf_counter() - t3}
+        doc = {"input": str(Path(inp.path).resolve()), "run": str(Path(run).resolve()),
+               "input_uv_replaced": inp.had_uv, "texture": texture, "size": size, "padding": pad,
+               "normalization": norm.to_json(), "charts": charts.n_charts,
+               **result.stats, "uv_metrics": metrics.summary, "timings": timings, "files": paths,
+               **(extra or {})}
+    finally:
+        bar(None)  # closes the bar, also when a stage fails (the error line then stands alone)
     write_json(out / UNWRAP_JSON, doc)
     return doc

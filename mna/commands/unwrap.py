@@ -75,7 +75,7 @@ def run_unwrap(args: argparse.Namespace) -> int:
         fit_info = {"fit": "fitted", "fit_steps": result.steps, "fit_seconds": result.seconds,
                     "fit_fscore_mesh": result.metrics["fscore_mesh"]}
     doc = unwrap_to_folder(inp, run, args.out, texture=args.texture, size=args.size, padding=args.padding,
-                           square_size=args.square_size, extra=fit_info)
+                           square_size=args.square_size, extra=fit_info, progress=not args.no_progress)
     m = doc["uv_metrics"]
     print(f"unwrap: {doc['islands']} islands, seam length {m['seam_length']:.2f}, distortion_metric "
           f"{m['distortion_metric']:.3f}, flipped {m['flipped_faces']}, overlap {m['uv_overlap_percent']:.2f} %, "

@@ -19,7 +19,7 @@ from texture.flatten import boundary_loop_count, euler_characteristic
 from texture.harness import measure
 from texture.meshprep import prepare_mesh
 from texture.regions import clean_labels, face_adjacency, regions
-from texture.unwrap import UnwrapConfig, unwrap_mesh
+from texture.unwrap import STAGES, UnwrapConfig, unwrap_mesh
 
 FAST = UnwrapConfig(resolution=512, padding=2, slim_iterations=100)
 
@@ -396,3 +396,14 @@ def test_islands_above_the_multires_size_flatten_in_two_resolutions():
     assert two.stats["islands"] == one.stats["islands"] <= 4
     slim = measure(one.mesh, reference=mesh).summary["distortion_metric"]
     assert m["distortion_metric"] < 0.15 and m["distortion_metric"] <= 1.5 * slim + 0.01, (m["distortion_metric"], slim)
+
+
+def test_progress_names_every_stage_in_order_and_each_is_timed():
+    """``progress`` hears every stage once, in the order of ``STAGES``; the timings have the
+    same keys (one stage ends where the next starts)."""
+    mesh = cylinder(rows=4, sections=16)
+    seen: list[str] = []
+    res = unwrap_mesh(mesh.vertices, mesh.faces, cylinder_chart(mesh), FAST, progress=seen.append)
+    assert seen == list(STAGES)
+    t = res.stats["timings"]
+    assert list(t) == list(STAGES) and all(v >= 0 for v in t.values())
