@@ -49,7 +49,8 @@ def run_demo(args: argparse.Namespace) -> int:
     check_int(args.seed, "--seed", 0, MAX_SEED)
     if args.shape not in shapes.SHAPES:
         raise MnaError(f"--shape: unknown built-in shape {args.shape!r}; choose from {', '.join(shapes.SHAPES)}")
-    out = prepare_run_folder(args.out, overwrite=args.overwrite)
+    # the demo also writes RUN/unwrap/ (its unwrap stage): --overwrite replaces it too
+    out = prepare_run_folder(args.out, overwrite=args.overwrite, extra_outputs=("unwrap",))
     mesh = shapes.make(args.shape)
     src = out / f"input_{args.shape}.ply"
     with atomic_path(src) as tmp:

@@ -433,8 +433,11 @@ def test_demo_budgets_its_fit_in_steps(monkeypatch, tmp_path, capsys):
     fit_argv = calls[0]
     assert "--time-budget" not in fit_argv
     assert fit_argv[fit_argv.index("--steps") + 1] == str(DEMO_STEPS)
-    # a second demo into the same folder needs --overwrite; the demo's own input is no obstacle
+    # a second demo into the same folder needs --overwrite; the demo's own input is no obstacle,
+    # nor the unwrap folder an earlier demo wrote (a second `make demo` once failed on it)
     (tmp_path / "d" / "mesh.obj").write_text("old")
+    (tmp_path / "d" / "unwrap").mkdir()
+    (tmp_path / "d" / "unwrap" / "unwrap.json").write_text("{}")
     monkeypatch.setattr(mna.cli, "main", main)
     _fails(capsys, ["demo", "-o", str(tmp_path / "d")], "not empty")
     args = mna.cli.build_parser().parse_args(["demo", "-o", str(tmp_path / "d"), "--overwrite"])
