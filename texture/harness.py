@@ -264,11 +264,12 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     count = coverage_count(tex_uv[m.faces], resolution, resolution)
     covered = int((count > 0).sum())
     rho, cv, p9010 = _texel_density(geom)
+    charts = len(np.unique(island[np.abs(geom.uv_area) > 0]))  # islands that cover some UV area
     summary = {
         "faces": m.n_faces,
         "vertices": int(len(m.vertices)),
-        "charts": int(len(np.unique(island[np.abs(geom.uv_area) > 0]))),
-        "point_charts": int(island.max() + 1 - len(np.unique(island[np.abs(geom.uv_area) > 0]))),
+        "charts": charts,
+        "point_charts": int(island.max() + 1) - charts,
         "seam_length": _seam_length(m, weld, boundary) / np.sqrt(total_area),
         **_aggregates(geom),
         "flipped_faces": int(flipped.sum()),

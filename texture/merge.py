@@ -27,10 +27,11 @@ On the 13 benchmark fits (1000 steps) this merged 10 pairs on 6 meshes (torus se
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .islands import edge_keys, edge_use_counts, half_edges
 from .relax import energy_excess
 from .unwrap_islands import Island, flatten_region, relax_islands, slit_islands
 
@@ -40,26 +41,33 @@ MERGE_SLITS = 2
 MERGE_ITERATIONS = 60
 
 
-def interior_edges(work_faces: np.ndarray) -> set:
-    """Edges (sorted working-vertex pairs) of the working mesh used by two faces: where an
-    island border is a seam (an edge used once is the surface's own open border)."""
-    e = np.sort(np.concatenate([work_faces[:, [0, 1]], work_faces[:, [1, 2]], work_faces[:, [2, 0]]]), axis=1)
-    keys, count = np.unique(e, axis=0, return_counts=True)
-    return set(map(tuple, keys[count >= 2].tolist()))
+@dataclass(frozen=True)
+class InteriorEdges:
+    """The working mesh's edges used by two faces, as sorted integer keys ``lo * base + hi`` of
+    their working vertices: where an island border is a seam (an edge used once is the
+    surface's own open border)."""
+
+    keys: np.ndarray
+    base: int
+
+    def contain(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Whether each working-vertex pair ``(a, b)`` is one of these edges."""
+        return np.isin(np.minimum(a, b) * self.base + np.maximum(a, b), self.keys)
 
 
-def island_seam(isl: Island, interior: set) -> float:
+def interior_edges(work_faces: np.ndarray) -> InteriorEdges:
+    """:class:`InteriorEdges` of the working mesh ``work_faces``."""
+    base = int(work_faces.max()) + 1
+    keys = edge_keys(np.arange(base), work_faces)
+    return InteriorEdges(np.unique(keys[edge_use_counts(keys) >= 2]), base)
+
+
+def island_seam(isl: Island, interior: InteriorEdges) -> float:
     """Half the 3D length of ``isl``'s border edges that are seams (each seam edge borders two
     island sides: here or in a neighbour), as the harness counts seams."""
-    f = isl.faces
-    he = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    key = np.sort(he, axis=1)
-    _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    border = he[count[inv.ravel()] == 1]
-    if not len(border):
-        return 0.0
-    work = np.sort(isl.work_vertex[border], axis=1)
-    seam = np.array([tuple(w) in interior for w in work.tolist()])
+    he = half_edges(isl.faces)
+    border = he[edge_use_counts(edge_keys(np.arange(len(isl.uv)), isl.faces)) == 1]
+    seam = interior.contain(isl.work_vertex[border[:, 0]], isl.work_vertex[border[:, 1]])
     length = np.linalg.norm(isl.xyz[border[:, 0]] - isl.xyz[border[:, 1]], axis=1)
     return 0.5 * float(length[seam].sum())
 
@@ -71,11 +79,11 @@ def _shared_borders(islands: list[Island], adj, n_faces: int) -> dict[tuple[int,
         owner[isl.work_faces] = k
     a, b = owner[adj.a], owner[adj.b]
     cross = (a != b) & (a >= 0) & (b >= 0)
-    i, j = np.minimum(a[cross], b[cross]), np.maximum(a[cross], b[cross])
-    out: dict[tuple[int, int], float] = {}
-    for p, q, w in zip(i.tolist(), j.tolist(), adj.length[cross].tolist()):
-        out[(p, q)] = out.get((p, q), 0.0) + w
-    return out
+    n = len(islands)
+    pair = np.minimum(a[cross], b[cross]) * n + np.maximum(a[cross], b[cross])
+    keys, inv = np.unique(pair, return_inverse=True)
+    length = np.bincount(inv.reshape(-1), weights=adj.length[cross], minlength=len(keys))
+    return {(int(k // n), int(k % n)): float(w) for k, w in zip(keys, length)}
 
 
 def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[int, int]]:
@@ -93,7 +101,7 @@ def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[
     return out
 
 
-def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: set, seam_pq: float) -> list[Island]:
+def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: InteriorEdges, seam_pq: float) -> list[Island]:
     """Islands p and q flattened as one region (cut to a disk, Tutte), or [] where that fails
     or its cuts alone already cost the seams the union would save (slits only add more)."""
     sel = np.concatenate([islands[p].work_faces, islands[q].work_faces])

@@ -131,16 +131,21 @@ def _ramp(start: np.ndarray, count: np.ndarray) -> np.ndarray:
     return np.repeat(start, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
 
 
+def _chunks(cost: np.ndarray, budget: int) -> Iterator[slice]:
+    """Consecutive slices of items whose ``cost`` sums to about ``budget`` (one item at least)."""
+    cum = np.cumsum(cost)
+    start = 0
+    while start < len(cost):
+        stop = max(int(np.searchsorted(cum, (cum[start - 1] if start else 0) + budget, side="right")), start + 1)
+        yield slice(start, stop)
+        start = stop
+
+
 def _face_rows(s: _Setup, cost: np.ndarray, budget: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """(triangle, row) of every row of every triangle's box, in chunks of about ``budget``
     ``cost`` (per triangle; a chunk holds one triangle at least)."""
-    cum = np.cumsum(cost)
-    start = 0
-    while start < len(s.rows):
-        base = cum[start - 1] if start else 0
-        stop = max(int(np.searchsorted(cum, base + budget, side="right")), start + 1)
-        faces = np.arange(start, stop)
-        start = stop
+    for sl in _chunks(cost, budget):
+        faces = np.arange(sl.start, sl.stop)
         nr = s.rows[faces]
         if nr.sum() == 0:
             continue
@@ -171,11 +176,7 @@ def iter_hits(tri_uv: np.ndarray, height: int, width: int, strict: bool = True,
     if spans:
         for run in _iter_spans(s, tol):
             n = run.last - run.first + 1
-            cum = np.cumsum(n)
-            lo = 0
-            while lo < len(n):  # chunks of runs of at most CHUNK texels (or one run)
-                hi = max(int(np.searchsorted(cum, (cum[lo - 1] if lo else 0) + CHUNK, side="right")), lo + 1)
-                sl, lo = slice(lo, hi), hi
+            for sl in _chunks(n, CHUNK):  # runs of about CHUNK texels (or one run)
                 f, row = np.repeat(run.face[sl], n[sl]), np.repeat(run.row[sl], n[sl])
                 col = _ramp(run.first[sl], n[sl])
                 yield Hits(row, col, f, np.stack(_bary(s, f, row, col), 1))

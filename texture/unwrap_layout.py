@@ -142,7 +142,9 @@ class _Packed:
     islands: list[Island]
     mode: int
     packing: Packing
-    """of the islands' outlines (turned as in ``mode``)"""
+    """of the islands' outlines, turned as in ``mode``"""
+    placed: list[Island]
+    """the islands turned as in ``mode``"""
     index: list[np.ndarray]
     """each island's outline vertices"""
 
@@ -184,15 +186,16 @@ def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict
     plans = []
     for layout, m in zip(layouts, modes):
         index: list = []
-        arrays = outline_arrays(turned(layout, PACK_MODES[m]), cache, index)
+        placed = turned(layout, PACK_MODES[m])
+        arrays = outline_arrays(placed, cache, index)
         plan = plan_layouts([arrays], candidates=(PACK_MODES[m][1],), **kw)[0]
         if plan is not None:
-            plans.append((plan, arrays, index, layout, m))
+            plans.append((plan, arrays, index, layout, placed, m))
     best = None
-    for plan, arrays, index, layout, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
+    for plan, arrays, index, layout, placed, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
         if plan.utilization <= max(floor, best.utilization if best is not None else 0.0):
             break
-        got = _Packed(layout, m, pack_islands(*arrays, plan=plan, **kw), index)
+        got = _Packed(layout, m, pack_islands(*arrays, plan=plan, **kw), placed, index)
         if best is None or got.utilization > best.utilization:
             best = got
     return best
@@ -261,5 +264,4 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         best = got[0]
         stats["halvings"].append({**got[1], "utilization": best.utilization})
     stats["mode"] = best.mode
-    final = turned(best.islands, PACK_MODES[best.mode])
-    return LayoutChoice(final, _whole_islands(final, best.index, best.packing), stats)
+    return LayoutChoice(best.placed, _whole_islands(best.placed, best.index, best.packing), stats)
