@@ -164,6 +164,7 @@ def _child(kind: str, mesh: str, run: str, out: str, size: int) -> None:
     import trimesh
 
     from mnacore.charts import load_charts
+    from texture import parallel
     from texture.harness import measure
     from texture.unwrap_run import load_unwrap_input, unwrap_to_folder
     from texture.xatlas_uv import XatlasOptions, unwrap
@@ -180,7 +181,8 @@ def _child(kind: str, mesh: str, run: str, out: str, size: int) -> None:
         ref = trimesh.Trimesh(inp.vertices, inp.faces, process=False)
         row = {**measure(r.mesh, reference=ref, normalization=norm).summary, "seconds": r.seconds}
     row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    row["peak_rss_workers_mb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    # the workers are forks of texture.parallel's fork server, not children of this process
+    row["peak_rss_workers_mb"] = parallel.peak_worker_rss_mb()
     print(json.dumps(row, default=float), flush=True)
 
 
@@ -211,7 +213,7 @@ def scale_rows(work: Path, size: int, xatlas_timeout: float) -> list[dict]:
 
 def scale_section(rows: list[dict]) -> str:
     lines = ["Scale (`--scale`): the shared bunny subdivided (same surface, the bunny's fit); each run in a process "
-             "of its own; time = ours after the fit / xatlas's `generate`; peak RSS of the process (its forked "
+             "of its own; time = ours after the fit / xatlas's `generate`; peak RSS of the process (its "
              "workers' largest in brackets).", "",
              "| mesh | faces | islands (ours / xatlas) | seam | distortion_metric | flipped | overlap % | utilisation | "
              "time s | peak RSS MB (ours / xatlas) |", "|---|---|---|---|---|---|---|---|---|---|"]

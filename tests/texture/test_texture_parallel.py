@@ -1,25 +1,57 @@
-"""texture.parallel: forked workers give the serial result, in order, with shared state."""
+"""texture.parallel: workers give the serial result, in order, with shared state, and are not
+forks of the caller (a lock another thread holds here must not reach them locked)."""
 from __future__ import annotations
 
 import os
+import threading
 
 import numpy as np
 
+from texture import parallel
 from texture.parallel import parallel_map
+
+LOCK = threading.Lock()
 
 
 def _job(x, shared):
     return x * shared["factor"] + shared["offset"][x], os.getpid()
 
 
+def _take_lock(x, shared):
+    got = LOCK.acquire(timeout=2.0)
+    if got:
+        LOCK.release()
+    return got
+
+
 def test_parallel_map_matches_serial_and_uses_other_processes():
-    shared = {"factor": 3, "offset": np.arange(10) ** 2}  # reaches the workers by the fork
+    shared = {"factor": 3, "offset": np.arange(10) ** 2}
     jobs = list(range(10))
     par = parallel_map(_job, jobs, workers=2, shared=shared)
     ser = parallel_map(_job, jobs, workers=2, shared=shared, parallel=False)
     assert [r for r, _ in par] == [r for r, _ in ser] == [3 * x + x * x for x in jobs]
     assert {pid for _, pid in ser} == {os.getpid()}
     assert os.getpid() not in {pid for _, pid in par}
+    assert parallel.peak_worker_rss_mb() > 10  # a Python worker with numpy loaded
+
+
+def test_workers_do_not_inherit_a_lock_another_thread_holds():
+    # a forked worker would copy LOCK in its held state and wait out the timeout (False)
+    held, release = threading.Event(), threading.Event()
+
+    def hold():
+        with LOCK:
+            held.set()
+            release.wait(30)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    try:
+        held.wait(5)
+        assert parallel_map(_take_lock, [0, 1], workers=2) == [True, True]
+    finally:
+        release.set()
+        t.join()
 
 
 def test_parallel_map_one_worker_runs_here():
