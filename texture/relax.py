@@ -35,6 +35,10 @@ from .distortion_faces import face_geometry
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 from .parallel import parallel_map
 
+#: the unwrap's size above which a disk is flattened by :mod:`texture.multires`
+#: (``UnwrapConfig.multires_faces``); such a disk starts from Tutte's convex embedding
+MULTIRES_FACES = 20_000
+
 #: weight of the soft constraints that hold border vertices (libigl's default).
 PIN_WEIGHT = 1e5
 

@@ -6,7 +6,7 @@ A *slit* is a shortest edge path from the island's border to the vertex where th
 relaxed map is most distorted; cutting along it keeps the island one disk (a path that
 starts on the border and never returns to it) but lets the surface open there, like the
 darts of a sewing pattern. :func:`slit_island` repeats: find the peak, cut, re-embed by
-Tutte (:func:`texture.flatten.tutte`), relax with SLIM (:func:`texture.relax.relax_island`),
+a conformal or Tutte map (:func:`texture.flatten.start_map`), relax with SLIM (:func:`texture.relax.relax_island`),
 until the energy excess is below the target or ``max_slits`` were cut, and keeps the
 result only where it lowered the energy.
 """
@@ -22,8 +22,8 @@ from mnacore import distortion as D
 from mnacore.triangles import signed_areas, triangle_areas
 
 from .distortion_faces import face_geometry
-from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, tutte
-from .relax import RelaxConfig, energy_excess
+from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
+from .relax import MULTIRES_FACES, RelaxConfig, energy_excess
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
 MAX_MISSES = 2
@@ -85,8 +85,9 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
 
 
 def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
-    """Tutte then SLIM at the isometric scale; None if the Tutte embedding is not valid."""
-    uv = tutte(xyz, faces)
+    """A start (:func:`texture.flatten.start_map`) then SLIM at the isometric scale; None if
+    the start is not valid."""
+    uv = start_map(xyz, faces, convex=len(faces) > MULTIRES_FACES)
     signed = signed_areas(uv, faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
         return None

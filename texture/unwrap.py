@@ -51,6 +51,7 @@ from .borders import shortest_borders
 from .merge import merge_islands
 from .meshprep import prepare_mesh
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
+from .relax import MULTIRES_FACES
 from .unwrap_islands import (
     WHOLE,
     Island,
@@ -84,7 +85,7 @@ class UnwrapConfig:
     """Most SLIM iterations per island."""
     slim_min_gain: float = 1e-4
     """Stop an island's SLIM once an iteration gains less than this in mean energy excess."""
-    multires_faces: int = 20_000
+    multires_faces: int = MULTIRES_FACES
     """Islands above this many faces are flattened by :mod:`texture.multires` (SLIM on a
     coarse copy, then ARAP): SLIM's iteration costs 0.26 s at 46k faces and 17-23 s at 418k,
     a coarse SLIM plus ARAP about 1 s at 47k. Below it SLIM alone is fast enough."""

@@ -12,10 +12,10 @@ import numpy as np
 
 from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
-from .flatten import cut_to_disk, relax_disk, split_pinched, tutte
+from .flatten import cut_to_disk, relax_disk, split_pinched, start_map
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import RelaxConfig, energy_excess
+from .relax import MULTIRES_FACES, RelaxConfig, energy_excess
 from .slits import slit_island
 
 
@@ -101,7 +101,8 @@ def flatten_halves(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
 
 def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,
                     depth: int, stats: dict) -> list[Island]:
-    """Disk-cut and Tutte-embed one connected region (``faces`` index ``xyz``); see module docstring."""
+    """Disk-cut and embed one connected region (``faces`` index ``xyz``; conformal where
+    that is an embedding, else Tutte: :func:`texture.flatten.start_map`); see module docstring."""
     vid, inv = np.unique(faces, return_inverse=True)
     local = inv.reshape(-1, 3)
     split, src = split_pinched(local)
@@ -117,7 +118,7 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
                 uv = np.zeros((len(disk.source), 2))
                 uv[disk.faces[0]] = isometric_triangle(p[disk.source][disk.faces[0]])
             else:
-                uv = tutte(p[disk.source], disk.faces)
+                uv = start_map(p[disk.source], disk.faces, convex=len(disk.faces) > MULTIRES_FACES)
             if not np.isfinite(uv).all() or (signed_areas(uv, disk.faces) <= 0).any():
                 raise RuntimeError("Tutte embedding folded (numerically)")
         except (RuntimeError, ValueError, KeyError, IndexError):
