@@ -16,6 +16,9 @@ like any region (:func:`texture.unwrap_islands.flatten_region`), and it replaces
 Neighbours are tried in order of the border they share (longest first), in rounds: each
 round a matching (no island in two pairs) is flattened at once (in parallel processes), the
 accepted pairs are merged, and a pair that failed is not tried again unless one side changed.
+Rounds go on until no untried pair is left, also after a round that merged nothing: the
+pairs its matching left out are tried next (bob: 1 trial and no merge before, 6 trials and
+3 merges now, seam 6.68 -> 5.22).
 A union above ``cfg.merge_max_faces`` faces is not tried (for time only: a trial costs a
 flattening of both islands again). A trial relaxes with at most ``MERGE_ITERATIONS`` SLIM
 iterations and ``MERGE_SLITS`` slits (stopping early only makes the bound harder to meet);
@@ -123,7 +126,7 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     interior = interior_edges(work_faces)
     seam = [island_seam(isl, interior) for isl in islands]
     failed: set[tuple[int, int]] = set()  # pairs of islands (by identity) whose union failed
-    for _ in range(len(islands)):
+    while True:  # each round merges a pair or fails one more: it ends when no pair is left
         shared = _shared_borders(islands, adj, len(work_faces))
         todo = _pairs(islands, shared, failed, cfg)
         if not todo:
@@ -147,8 +150,6 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
                 st["seam_removed"] += seam[p] + seam[q] - new_seam
             else:
                 failed.add((id(islands[p]), id(islands[q])))
-        if not add:
-            break
         keep = [k for k in range(len(islands)) if k not in drop]
         islands = [islands[k] for k in keep] + add
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
