@@ -10,7 +10,9 @@ native threads alive (torch's pool after a fit, a test runner's), and a fork cop
 one of them holds at that instant, forever locked in the child: a packing worker once hung
 in xatlas's thread join that way. The fork server is a fresh single-threaded interpreter
 that imports the modules below once; each worker is a fork of it, so starting one costs
-little and inherits no other thread's locks.
+little and inherits no other thread's locks. As with any fork server or spawn start (the
+default from Python 3.14), a script that calls the unwrap or export directly must guard its
+entry with ``if __name__ == "__main__":`` (the ``mna`` commands do).
 """
 from __future__ import annotations
 
