@@ -99,7 +99,7 @@ def curves_figure(rows: list[dict], stem: Path) -> None:
         # grown dotted, hard targets dash-dot
         style = "-." if r.get("hard_targets") else ":" if r.get("rule") == "grow" else "-" if r["charts"] == 3 else "--"
         label = f"{Path(r['mesh']).stem} K={r['charts']}{' grown' if r.get('rule') == 'grow' else ''}" + \
-            (f" +{r['hard_targets']} hard" if r.get("hard_targets") else "")
+            (f" +{r['hard_targets']} hard" if r.get("hard_targets") else "") + f", {r['steps']} steps"
         s = [p["step"] for p in r["curve"]]
         kw = dict(marker="o", ms=3, color=colours[r["mesh"]], ls=style, label=label)
         ax[0].plot(s, [p["fscore_mesh"] for p in r["curve"]], **kw)
