@@ -26,6 +26,8 @@ RUN_FILES = (
     "compare.json", "compare.md", "report.html", "report.md",
 )
 RUN_FOLDERS = ("xatlas", "xatlas_input", "renders")
+#: what ``mna fit`` writes: kept when ``mna unwrap --run RUN -o RUN`` replaces its own outputs
+FIT_FILES = ("config.yaml", "checkpoint.pt", "metrics.json", "points.ply", "charts.npz", "charts.ply")
 #: ``mna demo``'s copy of its built-in input shape
 RUN_PATTERNS = ("input_*.ply",)
 

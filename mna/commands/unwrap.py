@@ -29,7 +29,8 @@ def register(subparsers) -> None:
     p.add_argument("--threads", type=int, default=None, help="torch CPU threads")
     p.add_argument("--run", default=None, metavar="RUN", help="reuse this run's charts (RUN/charts.npz) instead of fitting")
     p.add_argument("--overwrite", action="store_true",
-                   help="fit into OUT even if it holds an earlier run (replaced; same rule as `mna fit`)")
+                   help="write OUT even if it holds an earlier run or unwrap: what mna wrote there is removed first "
+                        "(same rule as `mna fit`; with --run RUN -o RUN the fit's own files stay)")
     p.add_argument("--texture", default="checker", choices=["checker", "uvgrid", "bake"],
                    help="checker (default), uvgrid, or bake the input mesh's colours/texture")
     p.add_argument("--size", default="2048", help="texture size in texels (default 2048)")
@@ -56,11 +57,19 @@ def run_unwrap(args: argparse.Namespace) -> int:
     inp = load_unwrap_input(args.mesh)
     check_options(args.texture, args.size, args.padding)
     if args.run is not None:
-        if any(v is not None for v in (args.charts, args.steps, args.time_budget, args.seed)) or args.overwrite:
-            raise MnaError("--run reuses a fit: --charts, --steps, --time-budget, --seed and --overwrite do not apply")
+        if any(v is not None for v in (args.charts, args.steps, args.time_budget, args.seed)):
+            raise MnaError("--run reuses a fit: --charts, --steps, --time-budget and --seed do not apply")
         if not Path(args.run).is_dir():
             raise MnaError(f"--run: run folder not found: {args.run}")
         load_charts(Path(args.run) / "charts.npz")
+        # the run-folder rule of every command: an earlier unwrap's compare.md or renders/ must
+        # not sit beside the new mesh; the input mesh, and the fit when unwrapping into its own
+        # folder, are kept
+        from mna.runfolder import FIT_FILES, prepare_run_folder
+
+        own = Path(args.out).resolve() == Path(args.run).resolve()
+        prepare_run_folder(args.out, overwrite=args.overwrite,
+                           keep=[args.mesh, *([Path(args.out) / n for n in FIT_FILES] if own else [])])
         run = args.run
         fit_info = {"fit": "reused", "fit_run": str(Path(args.run).resolve())}
     else:

@@ -144,3 +144,30 @@ def test_unwrap_refuses_a_non_empty_out_without_overwrite(tmp_path, capsys):
     assert main(args) == 2
     assert "not empty" in capsys.readouterr().err
     assert main([*args, "--overwrite"]) == 0 and (out / "unwrap.json").is_file()
+
+
+def test_unwrap_with_run_follows_the_run_folder_rule(tmp_path, capsys):
+    """With --run, OUT is prepared like every run folder: an earlier unwrap there (and what
+    `mna compare`/`render` added to it) is refused without --overwrite and removed with it;
+    files mna does not write are never deleted; unwrapping into the fit's own folder keeps
+    the fit."""
+    run = write_sphere_run(tmp_path / "run", G=32)
+    mesh = str(run / "input.ply")
+    out = tmp_path / "out"
+    args = ["unwrap", mesh, "-o", str(out), "--run", str(run), "--no-progress", *SMALL]
+    assert main(args) == 0
+    (out / "compare.md").write_text("an earlier comparison\n")
+    (out / "renders").mkdir()
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not empty" in err and "--overwrite" in err and len(err.splitlines()) == 1
+    assert main([*args, "--overwrite"]) == 0
+    assert (out / "unwrap.json").is_file() and not (out / "compare.md").exists() and not (out / "renders").exists()
+    (out / "notes.txt").write_text("mine\n")
+    assert main([*args, "--overwrite"]) == 2 and (out / "notes.txt").is_file()
+    assert "does not write" in capsys.readouterr().err
+    # into the fit's own folder: the fit's files are not counted, and stay
+    fit_files = sorted(p.name for p in run.iterdir())
+    assert main(["unwrap", mesh, "-o", str(run), "--run", str(run), "--no-progress", *SMALL]) == 0
+    assert set(fit_files) <= {p.name for p in run.iterdir()} and (run / "unwrap.json").is_file()
