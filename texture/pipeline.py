@@ -221,8 +221,12 @@ def export_run(run: str | os.PathLike, texture: str = "checker", size: int | str
 
 
 def uv_mesh_file(mesh_path: str | os.PathLike, out: str | os.PathLike, options: XatlasOptions | None = None,
-                 texture: str = "checker", size: int | str | None = None, square_size: float | None = None) -> dict:
-    """``mna uv``: xatlas on any mesh file -> ``OUT/mesh.obj/.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``metrics.json``."""
+                 texture: str = "checker", size: int | str | None = None, square_size: float | None = None,
+                 prepare_out=None) -> dict:
+    """``mna uv``: xatlas on any mesh file -> ``OUT/mesh.obj/.mtl``, ``mesh_texture.png``, ``mesh.glb``, ``metrics.json``.
+
+    ``prepare_out()``: called once the input and options are valid, before anything is
+    written (the command's run-folder rule: refuse or empty ``OUT``)."""
     opts = (options or XatlasOptions()).validate()
     size = check_size(size if size is not None else (opts.resolution or 2048))
     if texture not in TEXTURES:
@@ -231,6 +235,8 @@ def uv_mesh_file(mesh_path: str | os.PathLike, out: str | os.PathLike, options: 
     check_mesh(mesh.vertices, mesh.faces, Path(mesh_path).name)
     if texture == "bake":
         source_colors(mesh)
+    if prepare_out is not None:
+        prepare_out()
     result = unwrap(mesh.vertices, mesh.faces, opts, check=False)
     norm = unit_ball_normalization(np.asarray(mesh.vertices)[np.unique(mesh.faces)])
     result_norm = result.mesh.transformed(norm)

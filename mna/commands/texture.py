@@ -49,6 +49,8 @@ def register(subparsers) -> None:
                    help="give xatlas the mesh in its own units instead of the unit-ball frame")
     u.add_argument("--texture", default="checker", choices=["checker", "uvgrid", "bake"])
     u.add_argument("--size", default=None, help="texture size (default: --resolution)")
+    u.add_argument("--overwrite", action="store_true",
+                   help="write OUT even if it holds earlier output: what mna wrote there is removed first")
     u.set_defaults(func=run_uv)
 
     m = subparsers.add_parser("uv-metrics", help="measure any UV-mapped mesh with the texture harness",
@@ -122,7 +124,12 @@ def run_uv(args: argparse.Namespace) -> int:
                          max_chart_area=args.max_chart_area, max_boundary_length=args.max_boundary_length,
                          resolution=args.resolution, padding=args.padding, brute_force=args.brute_force,
                          normalize=not args.input_units)
-    r = uv_mesh_file(args.mesh, args.out, opts, texture=args.texture, size=args.size)
+    from mna.runfolder import prepare_run_folder
+
+    # the run-folder rule: an earlier output (and its compare.md, renders/) is not left beside
+    # the new one; the input mesh inside OUT is kept
+    r = uv_mesh_file(args.mesh, args.out, opts, texture=args.texture, size=args.size,
+                     prepare_out=lambda: prepare_run_folder(args.out, overwrite=args.overwrite, keep=[args.mesh]))
     m = r["uv_metrics"]
     print(f"xatlas: {m['charts']} charts, seam length {m['seam_length']:.2f}, distortion_metric "
           f"{m['distortion_metric']:.3f}, utilization {m['utilization']:.2f} in {r['timings']['xatlas']:.2f} s "

@@ -73,6 +73,13 @@ def test_uv_and_uv_metrics(tmp_path, capsys):
     assert main(["uv-metrics", str(out / "mesh.obj"), "--reference", str(src), "-o", str(tmp_path / "m.json")]) == 0
     again = json.loads((tmp_path / "m.json").read_text())
     assert again["charts"] == m["uv_metrics"]["charts"]
+    # the run-folder rule: a second run into OUT is refused, --overwrite replaces what mna wrote
+    (out / "renders").mkdir()
+    args = ["uv", str(src), "-o", str(out), "--resolution", "256", "--padding", "2"]
+    assert main(args) == 2 and "not empty" in capsys.readouterr().err
+    assert main([*args, "--overwrite"]) == 0
+    assert _files(out) == {"mesh.obj", "mesh.mtl", "mesh_texture.png", "mesh.glb", "metrics.json"}
+    assert json.loads((out / "metrics.json").read_text())["options"]["max_cost"] == 2.0
     assert again["distortion_metric"] == pytest.approx(m["uv_metrics"]["distortion_metric"], abs=1e-5)
 
 
