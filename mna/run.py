@@ -26,7 +26,7 @@ from mna.fit import Fitter, resolve_device
 from mna.inference import extract_grid, rejection_sample, settle_c
 from mna.metrics import atlas_distortion, chamfer_fscore, sample_mesh
 from mna.model import NeuralAtlas, flush_denormals
-from mna.runfolder import prepare_run_folder
+from mna.runfolder import prepare_run_folder, remove_derived
 from mnacore.atomic import atomic_path, write_json
 from mnacore.charts import save_charts
 from mnacore.errors import MnaError
@@ -135,6 +135,10 @@ def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input
         except (RuntimeError, KeyError, TypeError, ValueError) as exc:
             raise MnaError(f"checkpoint in {out} does not match this configuration: {str(exc).splitlines()[0]}") from None
         log(f"resuming from step {fitter.step} ({fitter.elapsed:.1f} s done)")
+        stale = remove_derived(out)  # an export, comparison or renders of the charts before this resume
+        if stale:
+            log(f"removed what was made from the earlier charts ({', '.join(stale)}): run mna export, compare, "
+                f"render again after the fit")
     config_mod.save_yaml(out / CONFIG, run_config_dict(cfg, str(input_path)))
     log(f"fitting {Path(input_path).name} ({'mesh' if surface.is_mesh else 'point cloud'}) with "
         f"{cfg.model.charts} chart(s), preset {cfg.preset}, device {device}")

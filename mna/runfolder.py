@@ -4,7 +4,8 @@ Torch-free, so every command that writes a run folder (``fit``, ``reconstruct``,
 ``unwrap``) prepares it the same way with :func:`prepare_run_folder`:
 
 * a new run goes into a missing or empty folder;
-* ``--resume`` continues the run that is there;
+* ``--resume`` continues the run that is there (what was made from its charts before, an
+  export, comparison or renders, is removed once the fit resumes: :func:`remove_derived`);
 * ``--overwrite`` replaces it: everything mna wrote there is removed first, so no file of
   the old run (an old ``mesh.obj``, ``compare.md``, ``renders/`` ...) sits beside the new one.
   Files mna does not write are never deleted: the folder is refused instead.
@@ -28,6 +29,9 @@ RUN_FILES = (
 RUN_FOLDERS = ("xatlas", "xatlas_input", "renders")
 #: what ``mna fit`` writes: kept when ``mna unwrap --run RUN -o RUN`` replaces its own outputs
 FIT_FILES = ("config.yaml", "checkpoint.pt", "metrics.json", "points.ply", "charts.npz", "charts.ply")
+#: what later commands make from a fit's charts (export, unwrap, compare, render, report):
+#: stale once the fit continues, so ``mna fit --resume`` removes them
+DERIVED = tuple(n for n in RUN_FILES if n not in FIT_FILES) + RUN_FOLDERS
 #: ``mna demo``'s copy of its built-in input shape
 RUN_PATTERNS = ("input_*.ply",)
 
@@ -36,6 +40,25 @@ def is_run_output(name: str, extra: Iterable[str] = ()) -> bool:
     """True when ``name`` (an entry of a run folder) is something mna writes there."""
     patterns = (*RUN_FILES, *RUN_FOLDERS, *RUN_PATTERNS, *extra)
     return any(fnmatch.fnmatchcase(name, p) for p in patterns)
+
+
+def remove_derived(out: str | Path) -> list[str]:
+    """Remove from the run folder ``out`` what was made from its charts (:data:`DERIVED`);
+    returns the names removed."""
+    gone = []
+    for name in DERIVED:
+        p = Path(out) / name
+        try:
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            elif p.exists() or p.is_symlink():
+                p.unlink()
+            else:
+                continue
+        except OSError as exc:
+            raise MnaError(f"--resume: cannot remove the stale {p}: {exc.strerror or exc}") from None
+        gone.append(name + ("/" if name in RUN_FOLDERS else ""))
+    return gone
 
 
 def _listing(paths: list[Path], limit: int = 4) -> str:
@@ -53,7 +76,8 @@ def prepare_run_folder(out: str | Path, *, resume: bool = False, overwrite: bool
 
     Args:
         out: the run folder.
-        resume: continue the run that is there: nothing is removed; ``resume_file`` (e.g.
+        resume: continue the run that is there: nothing is removed here (the fit removes its
+            derived outputs once it resumes, :func:`remove_derived`); ``resume_file`` (e.g.
             ``checkpoint.pt``) must exist in it.
         overwrite: replace an existing run: remove every entry :func:`is_run_output` knows.
         keep: paths never removed and not counted as content (the command's own input

@@ -445,3 +445,26 @@ def test_demo_budgets_its_fit_in_steps(monkeypatch, tmp_path, capsys):
     with pytest.raises(Exception, match="stage 'fit' failed"):
         demo.run_demo(args)
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["input_torus.ply"]
+
+
+def test_resume_removes_what_was_made_from_the_earlier_charts(run_copy, torus_file):
+    """An export, comparison or renders of the charts before a resume would sit beside the new
+    fit's charts as if they were made from them: --resume removes them (and says so), and
+    keeps the fit's own files, the input and files mna does not write."""
+    from mna.runfolder import DERIVED, FIT_FILES
+
+    assert "mesh.obj" in DERIVED and "renders" in DERIVED and not set(FIT_FILES) & set(DERIVED)
+    for name in ("mesh.obj", "mesh.glb", "compare.md", "unwrap.json"):
+        (run_copy / name).write_text("made from the earlier charts")
+    (run_copy / "renders").mkdir()
+    (run_copy / "renders" / "figure.png").write_bytes(b"png")
+    (run_copy / "notes.txt").write_text("mine")
+    said = []
+    res = fit_run(torus_file, run_copy, _tiny(8), resume=True, progress_bar=False, log=said.append)
+    assert res.steps == 8
+    for name in ("mesh.obj", "mesh.glb", "compare.md", "unwrap.json", "renders"):
+        assert not (run_copy / name).exists(), name
+    assert (run_copy / "notes.txt").read_text() == "mine"
+    assert all((run_copy / n).is_file() for n in ("config.yaml", "checkpoint.pt", "metrics.json", "charts.npz"))
+    (line,) = [s for s in said if s.startswith("removed")]
+    assert "mesh.obj" in line and "renders/" in line
