@@ -42,22 +42,26 @@ def is_run_output(name: str, extra: Iterable[str] = ()) -> bool:
     return any(fnmatch.fnmatchcase(name, p) for p in patterns)
 
 
+def _remove(p: Path, option: str) -> None:
+    """Remove the file or folder ``p`` (a link itself, never what it points to)."""
+    try:
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
+    except OSError as exc:
+        raise MnaError(f"{option}: cannot remove {p}: {exc.strerror or exc}") from None
+
+
 def remove_derived(out: str | Path) -> list[str]:
     """Remove from the run folder ``out`` what was made from its charts (:data:`DERIVED`);
     returns the names removed."""
     gone = []
     for name in DERIVED:
         p = Path(out) / name
-        try:
-            if p.is_dir() and not p.is_symlink():
-                shutil.rmtree(p)
-            elif p.exists() or p.is_symlink():
-                p.unlink()
-            else:
-                continue
-        except OSError as exc:
-            raise MnaError(f"--resume: cannot remove the stale {p}: {exc.strerror or exc}") from None
-        gone.append(name + ("/" if name in RUN_FOLDERS else ""))
+        if p.exists() or p.is_symlink():
+            _remove(p, "--resume")
+            gone.append(name + ("/" if name in RUN_FOLDERS else ""))
     return gone
 
 
@@ -113,13 +117,7 @@ def prepare_run_folder(out: str | Path, *, resume: bool = False, overwrite: bool
             raise MnaError(f"--overwrite: {out} holds files mna does not write ({_listing(foreign)}); "
                            f"not deleting them: move them away or choose another folder")
         for p in entries:
-            try:
-                if p.is_dir() and not p.is_symlink():
-                    shutil.rmtree(p)
-                else:
-                    p.unlink()
-            except OSError as exc:
-                raise MnaError(f"--overwrite: cannot remove {p}: {exc.strerror or exc}") from None
+            _remove(p, "--overwrite")
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / ".mna-write-test"

@@ -241,11 +241,12 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     if 0 < cfg.multires_faces < len(faces):
         from .multires import is_convex_border, relax_multires
 
-        if not is_convex_border(uv, ordered_boundary(faces)):  # a conformal start: the coarse copy needs a convex one
+        border = ordered_boundary(faces)
+        if not is_convex_border(uv, border):  # a conformal start: the coarse copy needs a convex one
             t = tutte(xyz, faces)
             uv = t * np.sqrt(signed_areas(uv, faces).sum() / signed_areas(t, faces).sum())
 
-        got = relax_multires(xyz, uv, faces, cfg, ordered_boundary(faces), relax_disk)
+        got = relax_multires(xyz, uv, faces, cfg, border, relax_disk)
         if got is not None:
             return got
         if 0 < cfg.slim_max_faces < len(faces):  # SLIM would take minutes: the split stage halves it

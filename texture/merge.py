@@ -105,7 +105,7 @@ def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[
 
 
 def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: InteriorEdges, seam_pq: float) -> list[Island]:
-    """Islands p and q flattened as one region (cut to a disk, Tutte), or [] where that fails
+    """Islands p and q flattened as one region (cut to a disk, embedded), or [] where that fails
     or its cuts alone already cost the seams the union would save (slits only add more)."""
     sel = np.concatenate([islands[p].work_faces, islands[q].work_faces])
     try:

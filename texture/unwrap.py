@@ -9,12 +9,13 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
 2. ``assign``: chart per face by depth-preferring nearest-chart votes (:mod:`texture.assign`).
    A connected component none of whose faces comes within ``FAR_TOL`` of a chart is a
    *fallback* component: it becomes its own region, flattened the same classical way
-   (cut to a disk, Tutte, SLIM), and ``fallback_area_fraction`` reports its share.
+   (cut to a disk, embedded, SLIM), and ``fallback_area_fraction`` reports its share.
 3. ``clean``: one-face teeth smoothed away, chart borders moved within the charts' overlap
    to where they are shortest (:mod:`texture.borders`), small regions merged into their
    longest-border neighbour (:mod:`texture.regions`).
-4. ``flatten``: each region split at pinches and cut to a disk, embedded by Tutte
-   (:mod:`texture.flatten`), scaled so its UV area equals its 3D area (unit-ball frame).
+4. ``flatten``: each region split at pinches and cut to a disk, embedded by its conformal
+   map or Tutte's (:func:`texture.flatten.start_map`), scaled so its UV area equals its 3D
+   area (unit-ball frame).
    A region that cannot be cut to a disk is split in two across its longest axis.
 5. ``relax``: SLIM toward an isometry (:func:`texture.relax.relax_meshes`), all islands
    at the one scale above (so one texel density), border crossings prevented; each

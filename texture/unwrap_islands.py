@@ -31,7 +31,7 @@ class Island:
     work_vertex: np.ndarray
     label: int
     kept_start: bool = False
-    """Its relaxation failed and kept the Tutte start (:func:`texture.flatten.relax_disk`):
+    """Its relaxation failed and kept its start (:func:`texture.flatten.relax_disk`):
     no slits (they cut toward a relaxed map's distortion peak), the split stage halves it."""
 
 
@@ -120,7 +120,7 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
             else:
                 uv = start_map(p[disk.source], disk.faces, convex=len(disk.faces) > MULTIRES_FACES)
             if not np.isfinite(uv).all() or (signed_areas(uv, disk.faces) <= 0).any():
-                raise RuntimeError("Tutte embedding folded (numerically)")
+                raise RuntimeError("start embedding folded (numerically)")
         except (RuntimeError, ValueError, KeyError, IndexError):
             if depth <= 0:
                 raise
@@ -141,7 +141,7 @@ WHOLE = -1
 
 def whole_components(xyz, work_faces, comp, reg, cfg, fstats: dict) -> tuple[list[Island], set]:
     """(islands, components): components the charts split into several regions that flatten
-    *whole* (cut to a disk, Tutte, SLIM, slits) within ``cfg.slit_target`` energy excess.
+    *whole* (cut to a disk, embedded, SLIM, slits) within ``cfg.slit_target`` energy excess.
 
     The charts are fitted to the whole shape, so on a many-part shape one chart often
     covers halves of several small parts (a wheel split between two charts); a part that
