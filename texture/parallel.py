@@ -7,12 +7,20 @@ processes cannot be started.
 
 Workers come from a fork server, not from a fork of the caller. The caller usually has
 native threads alive (torch's pool after a fit, a test runner's), and a fork copies any lock
-one of them holds at that instant, forever locked in the child: a packing worker once hung
-in xatlas's thread join that way. The fork server is a fresh single-threaded interpreter
-that imports the modules below once; each worker is a fork of it, so starting one costs
-little and inherits no other thread's locks. As with any fork server or spawn start (the
-default from Python 3.14), a script that calls the unwrap or export directly must guard its
-entry with ``if __name__ == "__main__":`` (the ``mna`` commands do).
+one of them holds at that instant, forever locked in the child. The fork server is a fresh
+single-threaded interpreter that imports the modules below once; each worker is a fork of
+it, so starting one costs little and inherits no other thread's locks.
+
+A worker can still hang: twice a packing worker waited forever in xatlas's ``Destroy``,
+joining a thread of xatlas's own scheduler (once with fork, once with the fork server, in
+about a dozen test runs; presumably a wake-up its shutdown misses). So a pool in which no
+job has finished for ``STALL_SECONDS`` is taken for hung: its workers are killed and the
+jobs they had not finished run here instead, with the same result (the jobs are
+deterministic), only later.
+
+As with any fork server or spawn start (the default from Python 3.14), a script that calls
+the unwrap or export directly must guard its entry with ``if __name__ == "__main__":``
+(the ``mna`` commands do).
 """
 from __future__ import annotations
 
@@ -24,6 +32,10 @@ _shared: Any = None
 
 #: below this many faces in all, work is done in this process (starting workers costs more)
 MIN_FACES = 20_000
+
+#: seconds without any job finishing after which a pool is taken for hung (the longest job
+#: measured, a 418k-face island's relaxation at 1M input faces, took under 30 s)
+STALL_SECONDS = 180.0
 
 #: imported once by the fork server, so that its workers start with them loaded
 PRELOAD = ["numpy", "scipy.sparse", "scipy.spatial", "igl", "xatlas",
@@ -73,14 +85,42 @@ def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None 
     workers = min(len(jobs), workers or default_workers())
     if parallel and workers > 1:
         try:
-            from concurrent.futures import ProcessPoolExecutor
-
-            with ProcessPoolExecutor(workers, mp_context=_context(), initializer=_set_shared,
-                                     initargs=(shared,)) as ex:
-                done = list(ex.map(_call, [(fn, j) for j in jobs]))
+            futures = _pooled(fn, jobs, workers, shared)
         except (OSError, RuntimeError, ValueError):  # no processes here: run in this one
             pass
         else:
-            _peak_worker_kb = max([_peak_worker_kb] + [kb for _, kb in done])
-            return [r for r, _ in done]
+            out = []
+            for f, job in zip(futures, jobs):
+                if f.done() and not f.cancelled():
+                    r, kb = f.result()  # a job's own error is raised here, as in a serial run
+                    _peak_worker_kb = max(_peak_worker_kb, kb)
+                    out.append(r)
+                else:  # its worker hung: run it here
+                    out.append(fn(job, shared))
+            return out
     return [fn(j, shared) for j in jobs]
+
+
+def _pooled(fn, jobs: list, workers: int, shared) -> list:
+    """The jobs' futures, once every job finished or the pool stalled (no job finished for
+    ``STALL_SECONDS``: its workers are killed and the unfinished futures left undone)."""
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    ex = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_set_shared, initargs=(shared,))
+    futures = [ex.submit(_call, (fn, j)) for j in jobs]
+    pending = set(futures)
+    try:
+        while pending:
+            done, pending = wait(pending, timeout=STALL_SECONDS, return_when=FIRST_COMPLETED)
+            if not done:
+                break
+    finally:
+        if pending:
+            # ProcessPoolExecutor cannot stop a running job before Python 3.14
+            # (terminate_workers): kill its processes, then let it go
+            for proc in list(getattr(ex, "_processes", {}).values()):
+                proc.kill()
+            ex.shutdown(wait=False, cancel_futures=True)
+        else:
+            ex.shutdown()
+    return futures

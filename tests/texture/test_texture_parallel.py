@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 
 import numpy as np
 
@@ -52,6 +53,20 @@ def test_workers_do_not_inherit_a_lock_another_thread_holds():
     finally:
         release.set()
         t.join()
+
+
+def _hang_in_a_worker(x, shared):
+    if os.getpid() != shared["caller"] and x == 1:
+        time.sleep(600)  # as a worker stuck in xatlas's shutdown
+    return x * 10
+
+
+def test_a_stalled_pool_is_killed_and_its_unfinished_jobs_run_here(monkeypatch):
+    monkeypatch.setattr(parallel, "STALL_SECONDS", 3.0)
+    t0 = time.perf_counter()
+    got = parallel_map(_hang_in_a_worker, [0, 1, 2, 3], workers=2, shared={"caller": os.getpid()})
+    assert got == [0, 10, 20, 30]
+    assert time.perf_counter() - t0 < 60
 
 
 def test_parallel_map_one_worker_runs_here():
