@@ -49,6 +49,7 @@ from mnacore.uvmesh import UVMesh, weld_ids
 
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .borders import shortest_borders
+from .ears import move_ears
 from .merge import merge_islands
 from .meshprep import prepare_mesh
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
@@ -135,6 +136,8 @@ class UnwrapConfig:
     0.25 from it, inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
     pack_max_cuts: int = 2
     """Most packing halvings (0 = only the islands' turns are searched)."""
+    move_ears: bool = True
+    """Faces hanging on their island by one edge move across the seam (:mod:`texture.ears`)."""
 
 
 @dataclass
@@ -302,6 +305,9 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
     islands, long_stats = split_long_islands(islands, prep.component, cfg)
     split_stats.update(long_stats)
+    ear_stats = {}
+    if cfg.move_ears:
+        islands, ear_stats = move_ears(islands)
 
     stage("pack")
     packing, islands, offsets, mirrored, layout_stats = _packed(islands, prep.component, cfg)
@@ -313,7 +319,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
                   "fallback_components": int((~reached).sum()), "fallback_faces": int(fallback.sum()),
                   "fallback_area_fraction": float(area[fallback].sum() / total)}
     stats = {"prepare": prep.stats, "assignment": assignment, "regions": clean_stats, "islands": len(islands),
-             "flatten": fstats, "relax": relax_stats, "slits": slit_stats, "merge": merge_stats, "splits": split_stats,
+             "flatten": fstats, "relax": relax_stats, "slits": slit_stats, "merge": merge_stats, "splits": split_stats, "ears": ear_stats,
              "pack": {**_pack_stats(packing), "layout": layout_stats}, **out_stats, "islands_reflected": mirrored, "config": asdict(cfg),
              "timings": t}
     return Unwrap(mesh, face_island, stats)

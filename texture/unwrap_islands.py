@@ -12,6 +12,7 @@ import numpy as np
 
 from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
+from .ears import move_ears
 from .flatten import cut_to_disk, relax_disk, split_pinched, start_map
 from .meshprep import face_components
 from .parallel import parallel_map
@@ -387,7 +388,9 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
             best = (cut, np.flatnonzero(lo), np.flatnonzero(~lo))
     if best is None:
         return None
-    return [_sub_island(isl, best[1]), _sub_island(isl, best[2])], best[0]
+    # a cut between face sets zigzags: its ears move across, the halves keep their UVs
+    halves, ears = move_ears([_sub_island(isl, best[1]), _sub_island(isl, best[2])])
+    return halves, best[0] - ears["seam_removed"]
 
 
 def may_halve(islands_in_part: int, cfg) -> bool:
