@@ -202,3 +202,42 @@ def move_ears(islands: list) -> tuple[list, dict]:
         st["ears_moved"] += int(moved.sum())
         st["seam_removed"] += float(gain[order][moved].sum())
     return atlas.islands(islands), st
+
+
+def smooth_cut(isl, lo: np.ndarray) -> tuple[np.ndarray, float]:
+    """(new ``lo``, seam removed): the ears of a cut through one embedded island moved across
+    it, where ``lo (Fi,)`` marks the faces on one side. Both sides share the island's UVs,
+    so every ear fits. Only the faces around the cut take part: every ear, and every vertex
+    whose fan a move looks at, lies on the cut, and the cut only ever moves onto vertices
+    already on it, so the band of faces touching it holds every move (at 1M faces the
+    halvings of the packing search would otherwise rebuild whole islands)."""
+    from dataclasses import replace
+
+    faces = isl.faces
+    on_lo = np.zeros(len(isl.uv), bool)
+    on_hi = np.zeros(len(isl.uv), bool)
+    on_lo[faces[lo].ravel()] = True
+    on_hi[faces[~lo].ravel()] = True
+    band = np.flatnonzero((on_lo & on_hi)[faces].any(1))
+    # the island's own vertices and faces stand for the working mesh: copies along its
+    # slits stay apart, as they are in its UVs
+    local = replace(isl, work_faces=np.arange(len(faces)), work_vertex=np.arange(len(isl.uv)))
+    sides = [band[lo[band]], band[~lo[band]]]
+    if min(len(x) for x in sides) == 0:
+        return lo, 0.0
+    parts = [_part(local, sel) for sel in sides]
+    out, st = move_ears(parts)
+    new = lo.copy()
+    new[out[0].work_faces] = True
+    new[out[1].work_faces] = False
+    return new, st["seam_removed"]
+
+
+def _part(isl, sel: np.ndarray):
+    """The faces ``sel`` of ``isl`` as an island of their own (vertices renumbered)."""
+    from dataclasses import replace
+
+    vid, inv = np.unique(isl.faces[sel], return_inverse=True)
+    return replace(isl, faces=inv.reshape(-1, 3).astype(np.int64), uv=isl.uv[vid], xyz=isl.xyz[vid],
+                   work_faces=isl.work_faces[sel], work_vertex=isl.work_vertex[vid])
+

@@ -12,7 +12,7 @@ import numpy as np
 
 from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
-from .ears import move_ears
+from .ears import smooth_cut
 from .flatten import cut_to_disk, relax_disk, split_pinched, start_map
 from .meshprep import face_components
 from .parallel import parallel_map
@@ -389,8 +389,10 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
     if best is None:
         return None
     # a cut between face sets zigzags: its ears move across, the halves keep their UVs
-    halves, ears = move_ears([_sub_island(isl, best[1]), _sub_island(isl, best[2])])
-    return halves, best[0] - ears["seam_removed"]
+    lo = np.zeros(len(isl.faces), bool)
+    lo[best[1]] = True
+    lo, removed = smooth_cut(isl, lo)
+    return [_sub_island(isl, np.flatnonzero(lo)), _sub_island(isl, np.flatnonzero(~lo))], best[0] - removed
 
 
 def may_halve(islands_in_part: int, cfg) -> bool:

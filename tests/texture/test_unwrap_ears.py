@@ -116,3 +116,19 @@ def test_no_ears_no_change():
     out, st = move_ears(islands)
     assert st["ears_moved"] == 0
     assert _seam(out, faces) == pytest.approx(SIDE)
+
+
+def test_smooth_cut_is_move_ears_on_the_band():
+    """A cut through one embedded island (the packing's halvings): only the faces around the
+    cut take part, with the same result as moving ears between the whole halves."""
+    from texture.ears import smooth_cut
+
+    xyz, xy, faces, cell = _grid()
+    whole = _island(xyz, xy, faces, np.arange(len(faces)), 0)
+    lo = cell[:, 0] > cell[:, 1]
+    new, removed = smooth_cut(whole, lo)
+    assert removed == pytest.approx((N - 2) * (2 - np.sqrt(2)) * H, rel=1e-9)
+    halves, _ = move_ears([_island(xyz, xy, faces, np.flatnonzero(lo), 0),
+                           _island(xyz, xy, faces, np.flatnonzero(~lo), 1)])
+    assert np.array_equal(np.flatnonzero(new), np.sort(halves[0].work_faces))
+    assert (new != lo).sum() == N - 2
