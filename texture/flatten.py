@@ -194,6 +194,19 @@ def lscm(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
     return uv
 
 
+def holed_map(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
+    """(V, 2) conformal map (:func:`lscm`) of a region that is a disk with holes (genus 0,
+    two or more border loops), uncut; None for any other region or where the map is not an
+    embedding (a face flipped, the borders crossing). A flat region with holes (a plate's
+    face, a panel with windows) maps onto itself: no cut to a disk is needed, and the cuts
+    from each hole to the border (seam and ragged islands that pack poorly) are saved."""
+    faces = np.asarray(faces, np.int64)
+    loops = boundary_loop_count(faces)
+    if loops < 2 or euler_characteristic(faces) != 2 - loops:
+        return None
+    return lscm(vertices, faces)
+
+
 def start_map(vertices: np.ndarray, faces: np.ndarray, convex: bool = False) -> np.ndarray:
     """A flip-free start for SLIM on a disk: of the conformal map (:func:`lscm`, where it is
     an embedding) and :func:`tutte`, the one of lower energy excess at the isometric scale

@@ -36,7 +36,7 @@ import numpy as np
 
 from .islands import edge_keys, edge_use_counts, half_edges
 from .relax import energy_excess
-from .unwrap_islands import Island, flatten_region, relax_islands, slit_islands
+from .unwrap_islands import Island, flatten_region, holed_rule, relax_islands, slit_islands
 
 #: slits a union may take to come within the bound (each adds a seam and costs a relaxation)
 MERGE_SLITS = 2
@@ -104,12 +104,14 @@ def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[
     return out
 
 
-def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: InteriorEdges, seam_pq: float) -> list[Island]:
+def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: InteriorEdges, seam_pq: float,
+           holed=None) -> list[Island]:
     """Islands p and q flattened as one region (cut to a disk, embedded), or [] where that fails
     or its cuts alone already cost the seams the union would save (slits only add more)."""
     sel = np.concatenate([islands[p].work_faces, islands[q].work_faces])
     try:
-        new = flatten_region(xyz, work_faces[sel], sel, islands[p].label, 0, {"region_splits": 0, "cut_edges": 0})
+        new = flatten_region(xyz, work_faces[sel], sel, islands[p].label, 0, {"region_splits": 0, "cut_edges": 0},
+                             holed)
     except (RuntimeError, ValueError, KeyError, IndexError):
         return []
     return new if sum(island_seam(i, interior) for i in new) < seam_pq else []
@@ -131,7 +133,8 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         todo = _pairs(islands, shared, failed, cfg)
         if not todo:
             break
-        trials = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q]) for p, q in todo]
+        trials = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q], holed_rule(cfg))
+                  for p, q in todo]
         flat = [isl for t in trials for isl in t]
         relax_islands(flat, trial_cfg)
         slit_islands(flat, trial_cfg)

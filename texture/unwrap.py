@@ -58,6 +58,7 @@ from .unwrap_islands import (
     WHOLE,
     Island,
     flatten_region,
+    holed_rule,
     prefer_whole,
     refine_islands,
     relax_islands,
@@ -136,6 +137,9 @@ class UnwrapConfig:
     0.25 from it, inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
     pack_max_cuts: int = 2
     """Most packing halvings (0 = only the islands' turns are searched)."""
+    holed_islands: bool = True
+    """A region that is a disk with holes stays uncut where its conformal map embeds within
+    ``slit_target`` (:func:`texture.flatten.holed_map`): no cuts from its holes to its border."""
     move_ears: bool = True
     """Faces hanging on their island by one edge move across the seam (:mod:`texture.ears`)."""
 
@@ -221,7 +225,8 @@ def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig, stage) -> tuple[list, d
         sel = order[bounds[r]:bounds[r + 1]]
         if comp[sel[0]] in whole:
             continue
-        islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats)
+        islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats,
+                                  holed_rule(cfg))
     return islands, fstats
 
 

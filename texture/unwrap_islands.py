@@ -13,7 +13,7 @@ import numpy as np
 from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
 from .ears import smooth_cut
-from .flatten import cut_to_disk, relax_disk, split_pinched, start_map
+from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_map
 from .meshprep import face_components
 from .parallel import parallel_map
 from .relax import MULTIRES_FACES, RelaxConfig, energy_excess
@@ -32,6 +32,9 @@ class Island:
     work_vertex: np.ndarray
     label: int
     kept_start: bool = False
+    holed: bool = False
+    """Flattened uncut with its holes (:func:`texture.flatten.holed_map`, within the bound it
+    was given): the disk steps (SLIM, slits) leave it as it is."""
     """Its relaxation failed and kept its start (:func:`texture.flatten.relax_disk`):
     no slits (they cut toward a relaxed map's distortion peak), the split stage halves it."""
 
@@ -89,21 +92,61 @@ def _split_halves(vertices: np.ndarray, faces: np.ndarray, method: str = "axis")
 
 
 def flatten_halves(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int, depth: int,
-                   stats: dict, method: str = "axis") -> list[Island]:
+                   stats: dict, method: str = "axis", holed: HoledRule | None = None) -> list[Island]:
     """:func:`flatten_region` of each connected piece of the two halves of ``faces``."""
     out = []
     for half in _split_halves(xyz, faces, method):
         hv = face_components(faces[half])
         for h in np.unique(hv):
             part = half[hv == h]
-            out += flatten_region(xyz, faces[part], work_faces[part], label, depth, stats)
+            out += flatten_region(xyz, faces[part], work_faces[part], label, depth, stats, holed)
     return out
 
 
+@dataclass(frozen=True)
+class HoledRule:
+    """When a disk with holes stays uncut (:func:`flatten_region`): its conformal map
+    (:func:`texture.flatten.holed_map`) relaxed by free SLIM (``relax``) must stay an
+    embedding within ``within`` energy excess; regions above ``max_faces`` faces are cut as
+    usual (the two-resolution SLIM of large islands needs a disk)."""
+
+    within: float
+    relax: RelaxConfig
+    max_faces: int
+
+
+def holed_rule(cfg) -> HoledRule | None:
+    """The unwrap config's :class:`HoledRule` (the bound every island is flattened to,
+    ``cfg.slit_target``; SLIM alone up to ``cfg.slim_max_faces``), or None where
+    ``cfg.holed_islands`` is off."""
+    if not cfg.holed_islands:
+        return None
+    return HoledRule(cfg.slit_target, relax_config(cfg), cfg.slim_max_faces)
+
+
+def _holed(p: np.ndarray, f: np.ndarray, rule: HoledRule | None) -> np.ndarray | None:
+    """The region's uncut map at the isometric scale (:func:`texture.flatten.holed_map`, then
+    free SLIM) when ``rule`` keeps it, else None."""
+    from .relax import crossing_edges, relax_island
+
+    if rule is None or len(f) > rule.max_faces:
+        return None
+    uv = holed_map(p, f)
+    if uv is None:
+        return None
+    uv *= np.sqrt(triangle_areas(p, f).sum() / signed_areas(uv, f).sum())
+    if energy_excess(p, uv, f) > rule.within:
+        uv = relax_island(p, uv, f, rule.relax, check_crossings=False).uv
+    ok = np.isfinite(uv).all() and (signed_areas(uv, f) > 0).all() and not len(crossing_edges(f, uv))
+    return uv if ok and energy_excess(p, uv, f) <= rule.within else None
+
+
 def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,
-                    depth: int, stats: dict) -> list[Island]:
+                    depth: int, stats: dict, holed: HoledRule | None = None) -> list[Island]:
     """Disk-cut and embed one connected region (``faces`` index ``xyz``; conformal where
-    that is an embedding, else Tutte: :func:`texture.flatten.start_map`); see module docstring."""
+    that is an embedding, else Tutte: :func:`texture.flatten.start_map`); see module docstring.
+    ``holed``: a piece that is a disk with holes is kept uncut (a ``holed`` island) where
+    the :class:`HoledRule` allows."""
     vid, inv = np.unique(faces, return_inverse=True)
     local = inv.reshape(-1, 3)
     split, src = split_pinched(local)
@@ -113,6 +156,11 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
         cv, ci = np.unique(split[sel], return_inverse=True)
         f = ci.reshape(-1, 3)
         p = xyz[vid[src[cv]]]
+        uncut = _holed(p, f, holed)
+        if uncut is not None:
+            stats["holed"] = stats.get("holed", 0) + 1
+            out.append(Island(f, uncut, p, work_faces[sel], vid[src[cv]], label, holed=True))
+            continue
         try:
             disk = cut_to_disk(p, f)
             if len(disk.faces) == 1:  # SLIM needs two faces: place a lone triangle isometrically
@@ -126,7 +174,8 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
             if depth <= 0:
                 raise
             stats["region_splits"] += 1
-            out += flatten_halves(xyz, vid[src[cv]][f], work_faces[sel], label, depth - 1, stats)
+            out += flatten_halves(xyz, vid[src[cv]][f], work_faces[sel], label, depth - 1, stats,
+                                  holed=holed)
             continue
         stats["cut_edges"] += disk.cut_edges
         xyz_d = p[disk.source]
@@ -156,7 +205,8 @@ def whole_components(xyz, work_faces, comp, reg, cfg, fstats: dict) -> tuple[lis
     for c in np.flatnonzero((n_reg > 1) & (sizes <= cfg.whole_max_faces)):
         sel = np.flatnonzero(comp == c)
         try:
-            trial[int(c)] = flatten_region(xyz, work_faces[sel], sel, WHOLE, 0, {"region_splits": 0, "cut_edges": 0})
+            trial[int(c)] = flatten_region(xyz, work_faces[sel], sel, WHOLE, 0, {"region_splits": 0, "cut_edges": 0},
+                                           holed_rule(cfg))
         except (RuntimeError, ValueError, KeyError, IndexError):
             continue
     tried = [isl for isls in trial.values() for isl in isls]
@@ -204,7 +254,7 @@ def _relax_job(job, _shared=None):
 def relax_islands(islands: list[Island], cfg) -> dict:
     """SLIM every island (:func:`texture.flatten.relax_disk`), largest first, in parallel processes."""
     rcfg = relax_config(cfg)
-    order = sorted(range(len(islands)), key=lambda i: -len(islands[i].faces))
+    order = sorted((i for i in range(len(islands)) if not islands[i].holed), key=lambda i: -len(islands[i].faces))
     jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
     done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
     st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0, "multires": 0}
@@ -225,7 +275,7 @@ def slit_islands(islands: list[Island], cfg) -> dict:
     """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel processes)."""
     rcfg = relax_config(cfg)
     todo = [i for i, isl in enumerate(islands)
-            if cfg.max_slits > 0 and not isl.kept_start and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
+            if cfg.max_slits > 0 and not isl.kept_start and not isl.holed and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
     jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits) for i in todo]
     done = parallel_map(_slit_job, jobs, parallel=len(jobs) > 1)
     st = {"islands_slit": 0, "slits": 0, "excess_before": [], "excess_after": []}
@@ -284,7 +334,7 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
         isl = islands[i]
         for method in ("spectral", "axis") if SPLIT == "spectral" else ("axis",):
             new = flatten_halves(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, st,
-                                 method)
+                                 method, holed_rule(cfg))
             relax_islands(new, cfg)
             slit_islands(new, cfg)
             new_area = [float(triangle_areas(n.xyz, n.faces).sum()) for n in new]
