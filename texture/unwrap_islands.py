@@ -429,20 +429,17 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
     for q in sorted(cuts, key=lambda q: abs(q - 0.5)):  # equal cuts: the more even one
         lo = np.zeros(len(isl.faces), bool)
         lo[order[:int(np.searchsorted(cum, q)) + 1]] = True
-        if lo.all():
+        if lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
             continue
+        # a cut between face sets zigzags: its ears move across (the halves keep their UVs),
+        # and cuts are compared as they will be
+        lo, removed = smooth_cut(isl, lo)
         cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
-        if best is not None and cut >= best[0]:
-            continue
-        if _one_piece(adj, lo) and _one_piece(adj, ~lo):
-            best = (cut, np.flatnonzero(lo), np.flatnonzero(~lo))
+        if best is None or cut < best[0]:
+            best = (cut, lo)
     if best is None:
         return None
-    # a cut between face sets zigzags: its ears move across, the halves keep their UVs
-    lo = np.zeros(len(isl.faces), bool)
-    lo[best[1]] = True
-    lo, removed = smooth_cut(isl, lo)
-    return [_sub_island(isl, np.flatnonzero(lo)), _sub_island(isl, np.flatnonzero(~lo))], best[0] - removed
+    return [_sub_island(isl, np.flatnonzero(best[1])), _sub_island(isl, np.flatnonzero(~best[1]))], best[0]
 
 
 def may_halve(islands_in_part: int, cfg) -> bool:
