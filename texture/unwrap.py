@@ -215,7 +215,7 @@ def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig, stage) -> tuple[list, d
     """(islands of the whole components and of every other region, flatten stats)."""
     stage("whole")
     comp = prep.component
-    fstats = {"region_splits": 0, "cut_edges": 0}
+    fstats = {"region_splits": 0, "cut_edges": 0, "holed": 0}
     islands, whole = whole_components(xyz, prep.work_faces, comp, reg, cfg, fstats)
     fstats["whole_components"] = len(whole)
     stage("flatten")
