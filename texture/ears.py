@@ -74,7 +74,7 @@ class _Atlas:
         self.sign = np.asarray(sign, float)
 
     def ears(self) -> tuple[np.ndarray, ...]:
-        """Movable ears: (face, apex corner, face across, its nodes a', b', c', seam gained)."""
+        """Candidate ears: (face, apex corner, face across ``a-b``, that island's nodes a', b', c')."""
         F = self.faces
         he = half_edges(F)  # half-edge 3f+k runs from corner k to corner k+1
         wk = self.work_vertex[he]
@@ -225,19 +225,11 @@ def smooth_cut(isl, lo: np.ndarray) -> tuple[np.ndarray, float]:
     sides = [band[lo[band]], band[~lo[band]]]
     if min(len(x) for x in sides) == 0:
         return lo, 0.0
-    parts = [_part(local, sel) for sel in sides]
+    from .unwrap_islands import _sub_island  # it imports this module
+
+    parts = [_sub_island(local, sel) for sel in sides]
     out, st = move_ears(parts)
     new = lo.copy()
     new[out[0].work_faces] = True
     new[out[1].work_faces] = False
     return new, st["seam_removed"]
-
-
-def _part(isl, sel: np.ndarray):
-    """The faces ``sel`` of ``isl`` as an island of their own (vertices renumbered)."""
-    from dataclasses import replace
-
-    vid, inv = np.unique(isl.faces[sel], return_inverse=True)
-    return replace(isl, faces=inv.reshape(-1, 3).astype(np.int64), uv=isl.uv[vid], xyz=isl.xyz[vid],
-                   work_faces=isl.work_faces[sel], work_vertex=isl.work_vertex[vid])
-

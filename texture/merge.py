@@ -36,7 +36,7 @@ import numpy as np
 
 from .islands import edge_keys, edge_use_counts, half_edges
 from .relax import energy_excess
-from .unwrap_islands import Island, flatten_region, holed_rule, relax_islands, slit_islands
+from .unwrap_islands import HoledRule, Island, flatten_region, holed_rule, relax_islands, slit_islands
 
 #: slits a union may take to come within the bound (each adds a seam and costs a relaxation)
 MERGE_SLITS = 2
@@ -105,7 +105,7 @@ def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[
 
 
 def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: InteriorEdges, seam_pq: float,
-           holed=None) -> list[Island]:
+           holed: HoledRule | None = None) -> list[Island]:
     """Islands p and q flattened as one region (cut to a disk, embedded), or [] where that fails
     or its cuts alone already cost the seams the union would save (slits only add more)."""
     sel = np.concatenate([islands[p].work_faces, islands[q].work_faces])
@@ -126,6 +126,7 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     trial_cfg = replace(cfg, max_slits=min(cfg.max_slits, MERGE_SLITS),
                         slim_iterations=min(cfg.slim_iterations, MERGE_ITERATIONS))
     interior = interior_edges(work_faces)
+    holed = holed_rule(cfg)
     seam = [island_seam(isl, interior) for isl in islands]
     failed: set[tuple[int, int]] = set()  # pairs of islands (by identity) whose union failed
     while True:  # each round merges a pair or fails one more: it ends when no pair is left
@@ -133,8 +134,7 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         todo = _pairs(islands, shared, failed, cfg)
         if not todo:
             break
-        trials = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q], holed_rule(cfg))
-                  for p, q in todo]
+        trials = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q], holed) for p, q in todo]
         flat = [isl for t in trials for isl in t]
         relax_islands(flat, trial_cfg)
         slit_islands(flat, trial_cfg)

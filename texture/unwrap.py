@@ -15,7 +15,8 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
    longest-border neighbour (:mod:`texture.regions`).
 4. ``flatten``: each region split at pinches and cut to a disk, embedded by its conformal
    map or Tutte's (:func:`texture.flatten.start_map`), scaled so its UV area equals its 3D
-   area (unit-ball frame).
+   area (unit-ball frame); a disk with holes that flattens within ``slit_target`` uncut
+   stays one island with its holes (``holed_islands``).
    A region that cannot be cut to a disk is split in two across its longest axis.
 5. ``relax``: SLIM toward an isometry (:func:`texture.relax.relax_meshes`), all islands
    at the one scale above (so one texel density), border crossings prevented; each
@@ -23,7 +24,8 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
    ``merge``: neighbouring islands whose union flattens within ``slit_target`` with
    shorter seams are joined (:mod:`texture.merge`).
 6. ``split``: islands above ``target_distortion`` halved and re-flattened; islands too long
-   to pack densely halved across their length, UVs kept (:mod:`texture.unwrap_islands`).
+   to pack densely halved across their length, UVs kept (:mod:`texture.unwrap_islands`);
+   then faces hanging on their island by one edge move across the seam (:mod:`texture.ears`).
 7. ``pack``: the islands turned (and, below ``pack_target``, halved) as packs best
    (:func:`texture.unwrap_layout.choose_layout`), then :func:`texture.pack.pack_islands` at
    ``resolution`` and ``padding`` (the search compares real packings).

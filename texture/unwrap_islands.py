@@ -16,7 +16,7 @@ from .ears import smooth_cut
 from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_map
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import MULTIRES_FACES, RelaxConfig, energy_excess
+from .relax import MULTIRES_FACES, RelaxConfig, crossing_edges, energy_excess, relax_island
 from .slits import slit_island
 
 
@@ -32,11 +32,11 @@ class Island:
     work_vertex: np.ndarray
     label: int
     kept_start: bool = False
+    """Its relaxation failed and kept its start (:func:`texture.flatten.relax_disk`):
+    no slits (they cut toward a relaxed map's distortion peak), the split stage halves it."""
     holed: bool = False
     """Flattened uncut with its holes (:func:`texture.flatten.holed_map`, within the bound it
     was given): the disk steps (SLIM, slits) leave it as it is."""
-    """Its relaxation failed and kept its start (:func:`texture.flatten.relax_disk`):
-    no slits (they cut toward a relaxed map's distortion peak), the split stage halves it."""
 
 
 def _fiedler_halves(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray] | None:
@@ -127,8 +127,6 @@ def holed_rule(cfg) -> HoledRule | None:
 def _holed(p: np.ndarray, f: np.ndarray, rule: HoledRule | None) -> np.ndarray | None:
     """The region's uncut map at the isometric scale (:func:`texture.flatten.holed_map`, then
     free SLIM) when ``rule`` keeps it, else None."""
-    from .relax import crossing_edges, relax_island
-
     if rule is None or len(f) > rule.max_faces:
         return None
     uv = holed_map(p, f)
@@ -433,7 +431,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
             continue
         # a cut between face sets zigzags: its ears move across (the halves keep their UVs),
         # and cuts are compared as they will be
-        lo, removed = smooth_cut(isl, lo)
+        lo, _ = smooth_cut(isl, lo)
         cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
         if best is None or cut < best[0]:
             best = (cut, lo)
