@@ -225,11 +225,19 @@ def smooth_cut(isl, lo: np.ndarray) -> tuple[np.ndarray, float]:
     sides = [band[lo[band]], band[~lo[band]]]
     if min(len(x) for x in sides) == 0:
         return lo, 0.0
-    from .unwrap_islands import _sub_island  # it imports this module
-
-    parts = [_sub_island(local, sel) for sel in sides]
+    parts = [_part(local, sel) for sel in sides]
     out, st = move_ears(parts)
     new = lo.copy()
     new[out[0].work_faces] = True
     new[out[1].work_faces] = False
     return new, st["seam_removed"]
+
+
+def _part(isl, sel: np.ndarray):
+    """The faces ``sel`` of ``isl`` as an island of their own, vertices renumbered (as
+    :mod:`texture.unwrap_islands`'s own sub-islands, which import this module)."""
+    from dataclasses import replace
+
+    vid, inv = np.unique(isl.faces[sel], return_inverse=True)
+    return replace(isl, faces=inv.reshape(-1, 3).astype(np.int64), uv=isl.uv[vid], xyz=isl.xyz[vid],
+                   work_faces=isl.work_faces[sel], work_vertex=isl.work_vertex[vid])
