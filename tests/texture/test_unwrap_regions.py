@@ -106,6 +106,29 @@ def test_merge_refuses_a_union_that_would_distort():
     assert off["tried"] == 0
 
 
+def test_merge_gives_a_union_the_islands_slit_budget_and_makes_it_pay_for_the_slits():
+    """A unit cube's halves (y >= 0 and y < 0) share its equator, a unit square's perimeter:
+    seam 4 exactly. Their union, the cube cut to a disk, needs more than two slits to come
+    within ``slit_target`` (its eight corners; after two it is at excess 0.16), as many as
+    an island may take (``max_slits``). Flattened within the bound, it is still refused:
+    its cut and slits are longer than the equator it would remove."""
+    import trimesh
+
+    cube = trimesh.creation.box((1.0, 1.0, 1.0))
+    for _ in range(3):
+        cube = cube.subdivide()
+    cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=8)
+    v, f, islands = _halves(cube, cfg)
+    interior = interior_edges(f)
+    np.testing.assert_allclose(sum(island_seam(i, interior) for i in islands), 4.0, atol=1e-9)
+    merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    (trial,) = st["trials"]
+    assert trial["excess"] is not None and trial["excess"] <= cfg.slit_target
+    np.testing.assert_allclose(trial["seam_before"], 4.0, atol=1e-9)
+    assert trial["seam_after"] > trial["seam_before"] and not trial["merged"]
+    assert len(merged) == 2 and st["merges"] == 0
+
+
 def _capsule(radius=0.5, height=0.3, sections=32, rings=8, rows=3):
     """An open tube of ``height`` capped on top by a hemisphere (a lat-long grid from the pole)."""
     phi = 2 * np.pi * np.arange(sections) / sections
