@@ -96,8 +96,13 @@ def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray |
 
 
 def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxConfig, target: float,
-                max_slits: int) -> SlitResult:
-    """Cut up to ``max_slits`` slits while the energy excess exceeds ``target``; see module docstring."""
+                max_slits: int, max_length: float = np.inf) -> SlitResult:
+    """Cut up to ``max_slits`` slits while the energy excess exceeds ``target``; see module docstring.
+
+    ``max_length``: the 3D length the slits together must stay under (each adds its path's
+    length of seam). A slit that would reach it is not cut: a caller that can only use the
+    island if its seams stay short (a merge trial) stops paying for relaxations it would
+    refuse."""
     import igl
 
     faces = np.asarray(faces, np.int64)
@@ -105,13 +110,16 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
     before = energy_excess(xyz, uv, faces)
     best = SlitResult(faces, uv, source, 0, before, before)
     cur_faces, cur_uv, cur_src = faces, uv, source
-    misses = 0
+    misses, length = 0, 0.0
     for k in range(max_slits):
         if best.excess_after <= target:
             break
         p = xyz[cur_src]
         path = slit_path(p, cur_faces, face_energy(p, cur_uv, cur_faces))
         if path is None or len(path) < 2:
+            break
+        length += float(np.linalg.norm(np.diff(p[path], axis=0), axis=1).sum())
+        if length >= max_length:
             break
         _, new_faces, src = igl.cut_mesh(p, cur_faces, _cut_flags(cur_faces, [path]))
         new_faces = np.asarray(new_faces, np.int64)

@@ -265,16 +265,20 @@ def relax_islands(islands: list[Island], cfg) -> dict:
 
 
 def _slit_job(job, _shared=None):
-    xyz, faces, uv, rcfg, target, max_slits = job
-    return slit_island(xyz, faces, uv, rcfg, target, max_slits)
+    xyz, faces, uv, rcfg, target, max_slits, max_length = job
+    return slit_island(xyz, faces, uv, rcfg, target, max_slits, max_length)
 
 
-def slit_islands(islands: list[Island], cfg) -> dict:
-    """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel processes)."""
+def slit_islands(islands: list[Island], cfg, max_length: list[float] | None = None) -> dict:
+    """Slits in every island whose energy excess exceeds ``cfg.slit_target`` (in parallel
+    processes); ``max_length``: per island, the length its slits together must stay under
+    (:func:`texture.slits.slit_island`; default none)."""
     rcfg = relax_config(cfg)
+    limit = max_length if max_length is not None else [np.inf] * len(islands)
     todo = [i for i, isl in enumerate(islands)
             if cfg.max_slits > 0 and not isl.kept_start and not isl.holed and energy_excess(isl.xyz, isl.uv, isl.faces) > cfg.slit_target]
-    jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits) for i in todo]
+    jobs = [(islands[i].xyz, islands[i].faces, islands[i].uv, rcfg, cfg.slit_target, cfg.max_slits, limit[i])
+            for i in todo]
     done = parallel_map(_slit_job, jobs, parallel=len(jobs) > 1)
     st = {"islands_slit": 0, "slits": 0, "excess_before": [], "excess_after": []}
     for i, r in zip(todo, done):

@@ -257,6 +257,41 @@ def test_slits_lower_the_energy_of_a_cap_and_keep_a_disk():
     np.testing.assert_array_equal(xyz[r.source][r.faces].shape, (len(faces), 3, 3))
 
 
+def test_slits_stop_before_their_length_reaches_max_length():
+    """A bag (more than a hemisphere) takes several slits toward 0.02 excess; given a length
+    just over its first slit's, it takes exactly that one. The seam a slit adds is its path:
+    the border grows by twice the slits' length (both sides of the cut)."""
+    from texture.flatten import is_disk, relax_disk, tutte
+    from texture.relax import RelaxConfig
+    from texture.slits import slit_island
+
+    s = shapes.sphere(subdivisions=3)
+    keep = s.vertices[s.faces].mean(1)[:, 2] > -0.3
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    uv = tutte(xyz, faces)
+    uv *= np.sqrt(trimesh.triangles.area(xyz[faces]).sum() / signed_areas(uv, faces).sum())
+    cfg = RelaxConfig(iterations=100, min_gain=1e-4)
+    uv, _ = relax_disk(xyz, uv, faces, cfg)
+
+    def border(f, p):
+        from texture.flatten import ordered_boundary
+        loop = ordered_boundary(f)
+        return float(np.linalg.norm(p[loop] - p[np.roll(loop, -1)], axis=1).sum())
+
+    free = slit_island(xyz, faces, uv, cfg, target=0.02, max_slits=4)
+    assert free.slits >= 2 and is_disk(free.faces)
+    one = slit_island(xyz, faces, uv, cfg, target=0.02, max_slits=4, max_length=np.inf)
+    assert one.slits == free.slits  # the default is no limit
+    first = slit_island(xyz, faces, uv, cfg, target=0.02, max_slits=1)
+    first_length = (border(first.faces, xyz[first.source]) - border(faces, xyz)) / 2
+    assert first_length > 0.1
+    capped = slit_island(xyz, faces, uv, cfg, target=0.02, max_slits=4, max_length=first_length * 1.001)
+    assert capped.slits == 1
+    np.testing.assert_allclose(capped.uv, first.uv)
+    assert slit_island(xyz, faces, uv, cfg, target=0.02, max_slits=4, max_length=first_length * 0.999).slits == 0
+
+
 def test_smooth_borders_removes_teeth_and_terminates():
     from texture.regions import smooth_borders
 
