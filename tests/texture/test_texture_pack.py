@@ -121,6 +121,21 @@ def test_pack_folded_dominant_and_degenerate_islands():
     assert pk.utilization > 0.3
 
 
+@pytest.mark.parametrize("resolution, padding", [(2048, 8), (1024, 4)])
+def test_pack_grows_a_square_island_to_the_atlas_side(resolution, padding):
+    """One 3 x 3 square island (a UV scale that is not 1): the largest placement fills the
+    atlas, side ``resolution`` texels at most. The packing reaches it within the finest grow
+    step (a 1 % search bracket alone left it 0.5 % short: 2037 of 2048 texels)."""
+    uv = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 3.0], [0.0, 3.0]])
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    pk = pack_islands(uv, faces, np.zeros(2, int), resolution=resolution, padding=padding)
+    side = 3.0 * pk.texels_per_unit
+    assert resolution / min(pack.GROW_STEPS) - 1.0 <= side <= resolution
+    # texel centres covered by a square of that side: at least (side - 2)^2 wherever it lies
+    assert (side - 2.0) ** 2 <= pk.utilization * resolution**2 <= side**2
+    assert_valid_packing(pk, uv, faces, np.zeros(2, int))
+
+
 def test_pack_falls_back_to_shelf_when_xatlas_never_fits():
     uv, faces, island = _awkward_islands()
     # a policy with no xatlas option set to try stands for an input xatlas never packs validly
