@@ -31,7 +31,6 @@ from .policy import DEFAULT_POLICY, SearchPolicy
 from .scale_search import FINE_SHRINK, SHRINK, Plan, coarse_size, plan_layouts, search
 from .shelf import shelf_pack
 
-
 #: relative scale steps tried above the packing's scale, largest first (:func:`_grown`): they
 #: cover the coarse search's 1 % bracket, where the next invalid scale may lie anywhere
 GROW_STEPS = (1.0075, 1.005, 1.0025)
