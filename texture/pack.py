@@ -10,9 +10,10 @@ The stages, each deciding once:
    every option set;
 3. a packing that mirrors an island is redone with islands kept the right way round
    (:func:`_without_mirrors`);
-4. the packing's scale is grown in steps of ``GROW_STEP`` while xatlas still places the
-   islands (:func:`_grown`): the searches stop within 1 % of the largest scale they bracket
-   (a coarse search's tolerance), which leaves up to 2 % of utilisation unused;
+4. the packing's scale is grown by the largest of ``GROW_STEPS`` (0.75, 0.5, 0.25 %) at
+   which xatlas still places the islands (:func:`_grown`): the searches stop within 1 % of
+   the largest scale they bracket (a coarse search's tolerance), which left up to 2 % of
+   utilisation unused;
 5. if xatlas never gave a valid placement (e.g. an island it always splits), a shelf packer
    of padded bounding boxes (:func:`texture.shelf.shelf_pack`) places the islands: any
    input packs.
