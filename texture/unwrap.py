@@ -223,12 +223,13 @@ def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig, stage) -> tuple[list, d
     stage("flatten")
     order = np.argsort(reg, kind="stable")
     bounds = np.searchsorted(reg[order], np.arange(int(reg.max()) + 2))
+    holed = holed_rule(cfg)
     for r in range(int(reg.max()) + 1):
         sel = order[bounds[r]:bounds[r + 1]]
         if comp[sel[0]] in whole:
             continue
         islands += flatten_region(xyz, prep.work_faces[sel], sel, int(label[sel[0]]), cfg.max_split_depth, fstats,
-                                  holed_rule(cfg))
+                                  holed)
     return islands, fstats
 
 

@@ -324,6 +324,7 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
     excess = [energy_excess(isl.xyz, isl.uv, isl.faces) for isl in islands]
     frozen = [False] * len(islands)  # halving it did not lower the atlas's distortion
     current = atlas_distortion(islands)
+    holed = holed_rule(cfg)
     for _ in range(cfg.max_split_rounds):
         a, e = np.asarray(area), np.asarray(excess)
         e = np.where(np.isfinite(e), e, 1e6)
@@ -336,7 +337,7 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
         isl = islands[i]
         for method in ("spectral", "axis") if SPLIT == "spectral" else ("axis",):
             new = flatten_halves(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, st,
-                                 method, holed_rule(cfg))
+                                 method, holed)
             relax_islands(new, cfg)
             slit_islands(new, cfg)
             new_area = [float(triangle_areas(n.xyz, n.faces).sum()) for n in new]
