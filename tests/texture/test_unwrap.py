@@ -292,6 +292,81 @@ def test_slits_stop_before_their_length_reaches_max_length():
     assert slit_island(xyz, faces, uv, cfg, target=0.02, max_slits=4, max_length=first_length * 0.999).slits == 0
 
 
+def _relaxed_disk(xyz, faces, iterations=100):
+    from texture.flatten import relax_disk, tutte
+    from texture.relax import RelaxConfig
+
+    uv = tutte(xyz, faces)
+    uv *= np.sqrt(trimesh.triangles.area(xyz[faces]).sum() / signed_areas(uv, faces).sum())
+    cfg = RelaxConfig(iterations=iterations, min_gain=1e-4)
+    return relax_disk(xyz, uv, faces, cfg)[0], cfg
+
+
+def _slit_once(xyz, faces, uv):
+    """(the island cut along its first slit path: vertex sources, faces, the map before the
+    cut carried over (both sides of the slit on top of each other), the path)."""
+    import igl
+
+    from texture.flatten import _cut_flags
+    from texture.slits import face_energy, slit_path
+
+    path = slit_path(xyz, faces, face_energy(xyz, uv, faces))
+    _, f, src = igl.cut_mesh(xyz, faces, _cut_flags(faces, [path]))
+    src = np.asarray(src, np.int64)
+    return src, np.asarray(f, np.int64), uv[src], path
+
+
+def test_a_slit_opens_from_the_relaxed_map_of_a_cap():
+    """A bag (more than a hemisphere) cut along one slit and relaxed from its map before the
+    cut: the slit opens (its two sides part: a cap has less angle than a plane around its
+    peak), the map stays injective and its energy falls well below the uncut island's,
+    to what a fresh embedding reaches."""
+    from texture.relax import crossing_edges, energy_excess
+    from texture.slits import _embed, _opened
+
+    s = shapes.sphere(subdivisions=3)
+    keep = s.vertices[s.faces].mean(1)[:, 2] > -0.3
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    uv, cfg = _relaxed_disk(xyz, faces)
+    before = energy_excess(xyz, uv, faces)
+    src, f, closed, path = _slit_once(xyz, faces, uv)
+    assert len(src) > len(xyz) + 2  # the path's vertices were duplicated
+    opened = _opened(xyz[src], f, closed, cfg)
+    assert opened is not None
+    assert (signed_areas(opened, f) > 0).all() and not len(crossing_edges(f, opened))
+    after = energy_excess(xyz[src], opened, f)
+    assert after < 0.4 * before
+    assert after <= 1.05 * energy_excess(xyz[src], _embed(xyz[src], f, cfg), f)
+    # the twins of each path vertex but the peak (both sides of the slit) are apart in UV
+    slit_length = np.linalg.norm(np.diff(xyz[path], axis=0), axis=1).sum()
+    gaps = [np.ptp(opened[src == v], axis=0).max() for v in path[:-1] if (src == v).sum() == 2]
+    assert len(gaps) >= len(path) // 2 and max(gaps) > 0.1 * slit_length
+
+
+def test_a_slit_on_a_saddle_falls_back_to_a_fresh_embedding():
+    """Around a saddle's centre there is more angle than in a plane: a slit's sides would
+    overlap, so opening it from the map before the cut does not lower the energy. The cut
+    island then takes a fresh embedding, which is injective and as good as
+    :func:`texture.slits._embed` alone."""
+    from texture.relax import crossing_edges, energy_excess
+    from texture.slits import _embed, _opened, _relaxed_cut
+
+    sheet = shapes.sheet(size=1.0, resolution=31)
+    xyz, faces = np.asarray(sheet.vertices, float).copy(), np.asarray(sheet.faces)
+    xyz[:, 2] = 3.0 * (xyz[:, 0] ** 2 - xyz[:, 1] ** 2)
+    uv, cfg = _relaxed_disk(xyz, faces)
+    src, f, closed, _ = _slit_once(xyz, faces, uv)
+    p = xyz[src]
+    closed_excess = energy_excess(p, closed, f)
+    opened = _opened(p, f, closed, cfg)
+    assert opened is None or energy_excess(p, opened, f) >= closed_excess
+    got, excess = _relaxed_cut(p, f, closed, cfg)
+    fresh = energy_excess(p, _embed(p, f, cfg), f)
+    assert excess == pytest.approx(fresh, rel=1e-9) and excess < 1.1 * closed_excess
+    assert (signed_areas(got, f) > 0).all() and not len(crossing_edges(f, got))
+
+
 def test_smooth_borders_removes_teeth_and_terminates():
     from texture.regions import smooth_borders
 
