@@ -16,7 +16,7 @@ from .ears import smooth_cut
 from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_map
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import MULTIRES_FACES, RelaxConfig, crossing_edges, energy_excess, relax_island
+from .relax import MULTIRES_FACES, RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island
 from .slits import slit_island
 
 
@@ -309,6 +309,21 @@ def atlas_distortion(islands: list[Island]) -> float:
     return D.all_distortions(D.metric_tensor(np.concatenate(jac)), weights=np.concatenate(ws)).metric
 
 
+def border_length(isl: Island) -> float:
+    """3D length of the island's border (its seams and the surface's own open border)."""
+    e = boundary_edges(isl.faces)
+    return float(np.linalg.norm(isl.xyz[e[:, 0]] - isl.xyz[e[:, 1]], axis=1).sum())
+
+
+def zigzag(isl: Island, pieces: list[Island]) -> bool:
+    """Whether cutting ``isl`` into ``pieces`` added more seam than ``ZIGZAG`` times the
+    island's 3D diameter (its bounding box's diagonal): a cut across a region runs no longer
+    than the region is wide where the mesh has edges that way; where it has none (long thin
+    faces) the cut zigzags along them (see ``ZIGZAG``)."""
+    added = 0.5 * (sum(border_length(p) for p in pieces) - border_length(isl))
+    return added > ZIGZAG * float(np.linalg.norm(np.ptp(isl.xyz, axis=0)))
+
+
 def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray,
                    cfg) -> tuple[list[Island], dict]:
     """While the islands' :func:`atlas_distortion` exceeds ``cfg.target_distortion``, halve the
@@ -340,6 +355,8 @@ def refine_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarra
                                  method, holed)
             relax_islands(new, cfg)
             slit_islands(new, cfg)
+            if zigzag(isl, new):
+                continue
             new_area = [float(triangle_areas(n.xyz, n.faces).sum()) for n in new]
             new_excess = [energy_excess(n.xyz, n.uv, n.faces) for n in new]
             candidate = atlas_distortion(islands[:i] + islands[i + 1:] + new)
@@ -406,6 +423,12 @@ def _one_piece(adj, mask: np.ndarray) -> bool:
     return connected_components(g, directed=False)[0] == 1
 
 
+#: a halving whose cut (along mesh edges) is longer than this many times the island's width
+#: across it is refused: the mesh has no edges running across there, and the cut zigzags along
+#: the faces' long edges (a capsule whose side is one ring of faces spanning its height: a
+#: cut across it ran up and down 20 of them, seam 63 against a circumference of 2.5). An
+#: edge path across a fair triangulation is at most about 1.3x its straight line.
+ZIGZAG = 2.0
 #: cut positions tried by :func:`split_long_islands`: these fractions of the island's area
 #: lie before the cut along its principal axis.
 LONG_CUTS = np.linspace(0.3, 0.7, 9)
@@ -424,6 +447,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
 
     axis = _principal_axis(isl.uv, minor=along)
     s = isl.uv[isl.faces].mean(1) @ axis
+    width = float(np.ptp(isl.uv @ np.array([-axis[1], axis[0]])))  # across the axis: a straight cut's most
     area = triangle_areas(isl.xyz, isl.faces)
     order = np.argsort(s, kind="stable")
     cum = np.cumsum(area[order]) / area.sum()
@@ -438,6 +462,8 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
         # and cuts are compared as they will be
         lo, _ = smooth_cut(isl, lo)
         cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
+        if cut > ZIGZAG * width:  # no line of the mesh runs across here (long thin faces)
+            continue
         if best is None or cut < best[0]:
             best = (cut, lo)
     if best is None:
@@ -456,6 +482,14 @@ def may_halve(islands_in_part: int, cfg) -> bool:
     return 1 < islands_in_part < cfg.long_max_islands
 
 
+#: a part that flattened as one island (its fewest seams) is halved for its length only when
+#: it is this many times longer than the atlas side: it alone then caps utilisation below a
+#: quarter of ``long_fill`` (a tube unrolled to one strip: 0.03-0.04 on a knotted tube and a
+#: washer), where a near-square part just over the side is left whole (halving inspired_mesh's
+#: one island raised its utilisation 0.60 -> 0.63 at a seam of 0.86 where xatlas has none)
+LONE_LONG = 2.0
+
+
 def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[list[Island], dict]:
     """Halve (:func:`halve_across`) islands too long to pack densely, longest first.
 
@@ -465,7 +499,7 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
     the atlas's width, utilisation 0.22). Such an island is halved across that axis at its
     narrowest cut; its UVs are kept, so distortion, flips and overlap do not change; only a
     seam and an island are added. At most ``cfg.long_max_splits`` halvings, each allowed by
-    :func:`may_halve`.
+    :func:`may_halve`, or of a part's one island longer than ``LONE_LONG`` times the side.
     """
     st = {"long_islands_split": 0}
     if cfg.long_max_splits <= 0 or not islands:
@@ -474,12 +508,20 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
     side = float(np.sqrt(total / cfg.long_fill))
     part, per_comp = island_parts(islands, comp)
     skip: set[int] = set()
+    def over(isl, p):  # the island's length in units of the longest it may be
+        if id(isl) in skip:
+            return 0.0
+        if may_halve(per_comp[p], cfg):
+            return _principal_extent(isl.uv)[0] / side
+        if per_comp[p] == 1 < cfg.long_max_islands:  # a part's first seam: only for a strip
+            return _principal_extent(isl.uv)[0] / (LONE_LONG * side)
+        return 0.0
+
     for _ in range(cfg.long_max_splits):
-        length = [(_principal_extent(isl.uv)[0] if id(isl) not in skip and may_halve(per_comp[p], cfg) else 0.0)
-                  for isl, p in zip(islands, part)]
+        length = [over(isl, p) for isl, p in zip(islands, part)]
         k = int(np.argmax(length))
         c = int(part[k])
-        if length[k] <= side:
+        if length[k] <= 1.0:
             break
         halved = halve_across(islands[k])
         if halved is None:

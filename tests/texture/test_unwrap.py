@@ -438,6 +438,64 @@ def test_islands_too_long_to_pack_densely_are_halved_with_their_uvs_kept():
     assert st["long_islands_split"] == 1 and len(out) == 3
 
 
+def test_a_part_of_one_island_is_halved_for_length_only_when_it_is_a_strip():
+    """A part that flattened as one island keeps its fewest seams unless it is longer than
+    ``LONE_LONG`` atlas sides: a 40 x 1 strip alone (side at fill 0.6: 8.2) is halved, into
+    pieces no longer than that bound; a 12 x 4 island alone (longer than the side, 8.9, but
+    not a strip) is left whole. Each on its own part (component)."""
+    from texture.unwrap_islands import LONE_LONG, _principal_extent, split_long_islands
+
+    cfg = UnwrapConfig()
+    strip = _flat_island(40, 1)
+    out, st = split_long_islands([strip], np.zeros(80, np.int64), cfg)
+    side = np.sqrt(40 / cfg.long_fill)
+    assert st["long_islands_split"] >= 1 and len(out) == 1 + st["long_islands_split"]
+    assert max(_principal_extent(isl.uv)[0] for isl in out) <= LONE_LONG * side + 1e-9
+    assert sorted(np.concatenate([isl.work_faces for isl in out]).tolist()) == list(range(80))
+    wide = _flat_island(12, 4)
+    assert _principal_extent(wide.uv)[0] > np.sqrt(48 / cfg.long_fill)  # past the plain rule's bound
+    out, st = split_long_islands([wide], np.zeros(96, np.int64), cfg)
+    assert st["long_islands_split"] == 0 and len(out) == 1
+
+
+def _unrolled_tube(rings: int, sectors: int = 32, height: float = 3.0, radius: float = 0.4):
+    """An open tube cut along one meridian and unrolled exactly (UV = (arc length, height)),
+    with ``rings`` rows of faces: 1 row makes every face as tall as the tube."""
+    from texture.unwrap_islands import Island
+
+    a = np.linspace(0, 2 * np.pi, sectors + 1)
+    z = np.linspace(0, height, rings + 1)
+    A, Z = np.meshgrid(a, z, indexing="xy")
+    xyz = np.column_stack([radius * np.cos(A.ravel()), radius * np.sin(A.ravel()), Z.ravel()])
+    uv = np.column_stack([radius * A.ravel(), Z.ravel()])
+    i, j = np.meshgrid(np.arange(sectors), np.arange(rings), indexing="xy")
+    v = (j * (sectors + 1) + i).ravel()
+    faces = np.concatenate([np.column_stack([v, v + 1, v + sectors + 2]),
+                            np.column_stack([v, v + sectors + 2, v + sectors + 1])])
+    return Island(faces, uv, xyz, np.arange(len(faces)), np.arange(len(uv)), 0)
+
+
+def test_a_cut_that_would_zigzag_along_long_faces_is_refused():
+    """Halving an unrolled tube (2.5 around, 3 tall) across its long axis: with 30 rows of
+    faces the cut runs straight around it (length 2.5, the island's width); with one row of
+    faces spanning the height there is no edge across, the cut would run up and down the
+    faces (tens of units of seam), and no halving is made. ``zigzag`` tells the two apart."""
+    from texture.unwrap_islands import _sub_island, halve_across, zigzag
+
+    fine = _unrolled_tube(30)
+    halves, cut = halve_across(fine)
+    circumference = 2 * np.pi * 0.4
+    assert cut == pytest.approx(circumference, rel=0.02) and not zigzag(fine, halves)
+    coarse = _unrolled_tube(1)
+    assert halve_across(coarse) is None
+    # the same split by face order (what a spectral split of such faces gives): a zigzag
+    order = np.argsort(coarse.uv[coarse.faces].mean(1)[:, 1], kind="stable")
+    lo = np.zeros(len(coarse.faces), bool)
+    lo[order[: len(order) // 2]] = True
+    pieces = [_sub_island(coarse, np.flatnonzero(lo)), _sub_island(coarse, np.flatnonzero(~lo))]
+    assert zigzag(coarse, pieces)
+
+
 def test_large_meshes_label_an_even_subset_and_spread_it_along_the_mesh():
     """Above ``max_labelled`` faces, about that many faces (one per grid cell, at least one
     per piece) are labelled from the charts; the others copy the nearest labelled face along
