@@ -14,6 +14,7 @@ from mnacore.triangles import isometric_triangle, signed_areas, triangle_areas
 
 from .ears import smooth_cut
 from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_map
+from .holes import cut_seam, flatten_filled
 from .meshprep import face_components
 from .parallel import parallel_map
 from .relax import MULTIRES_FACES, RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island
@@ -113,6 +114,8 @@ class HoledRule:
     within: float
     relax: RelaxConfig
     max_faces: int
+    max_slits: int = 0
+    """slits of a region flattened with its small holes filled (:mod:`texture.holes`)"""
 
 
 def holed_rule(cfg) -> HoledRule | None:
@@ -121,7 +124,7 @@ def holed_rule(cfg) -> HoledRule | None:
     ``cfg.holed_islands`` is off."""
     if not cfg.holed_islands:
         return None
-    return HoledRule(cfg.slit_target, relax_config(cfg), cfg.slim_max_faces)
+    return HoledRule(cfg.slit_target, relax_config(cfg), cfg.slim_max_faces, cfg.max_slits)
 
 
 def _holed(p: np.ndarray, f: np.ndarray, rule: HoledRule | None) -> np.ndarray | None:
@@ -159,8 +162,22 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
             stats["holed"] = stats.get("holed", 0) + 1
             out.append(Island(f, uncut, p, work_faces[sel], vid[src[cv]], label, holed=True))
             continue
+        filled = None if holed is None or len(f) > holed.max_faces else flatten_filled(
+            p, f, holed.relax, holed.within, holed.max_slits)
         try:
             disk = cut_to_disk(p, f)
+        except (RuntimeError, ValueError, KeyError, IndexError):
+            disk = None
+        if filled is not None and (disk is None or filled.added <= cut_seam(p, f, disk)):
+            # relaxed and slit already: the disk steps leave it as it is
+            stats["filled"] = stats.get("filled", 0) + 1
+            stats["cut_edges"] += filled.cut_edges
+            out.append(Island(filled.faces, filled.uv, p[filled.source], work_faces[sel],
+                              vid[src[cv]][filled.source], label, holed=True))
+            continue
+        try:
+            if disk is None:
+                raise RuntimeError("the region could not be cut to a disk")
             if len(disk.faces) == 1:  # SLIM needs two faces: place a lone triangle isometrically
                 uv = np.zeros((len(disk.source), 2))
                 uv[disk.faces[0]] = isometric_triangle(p[disk.source][disk.faces[0]])

@@ -1,0 +1,100 @@
+"""Small holes kept as holes (texture.holes): the fill, the flattening, the seam it saves."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from mna import shapes
+from mnacore.triangles import signed_areas, triangle_areas
+
+
+def _grid_with_holes(n: int = 20, holes=((5, 5), (12, 7), (15, 15)), big: tuple | None = None):
+    """A flat n x n grid of unit squares (2 faces each) with the faces of some cells removed:
+    one-cell holes, and optionally a big square hole (x0, y0, size)."""
+    sheet = shapes.sheet(size=float(n), resolution=n + 1)
+    xyz, faces = np.asarray(sheet.vertices, float), np.asarray(sheet.faces)
+    c = xyz[faces].mean(1)[:, :2] + n / 2.0  # cell coordinates in [0, n)
+    cell = np.floor(c).astype(int)
+    drop = np.zeros(len(faces), bool)
+    for i, j in holes:
+        drop |= (cell[:, 0] == i) & (cell[:, 1] == j)
+    if big is not None:
+        x0, y0, s = big
+        drop |= (cell[:, 0] >= x0) & (cell[:, 0] < x0 + s) & (cell[:, 1] >= y0) & (cell[:, 1] < y0 + s)
+    return xyz, faces[~drop]
+
+
+def _edge_uses(faces):
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    return he
+
+
+def test_small_holes_get_fans_that_close_them_with_a_consistent_orientation():
+    """Three one-cell holes in a 20 x 20 grid (each 0.25 % of the area) are filled, a 6 x 6
+    hole (9 %) is not: the filled grid has one border loop fewer per filled hole, every
+    interior edge is used once each way, and the fans cover exactly the cells removed."""
+    from texture.flatten import boundary_loop_count
+    from texture.holes import FILL_AREA, hole_fans
+
+    xyz, faces = _grid_with_holes(big=(2, 12, 6))
+    assert 36 / 400 > FILL_AREA > 1 / 400
+    p, f = hole_fans(xyz, faces)
+    assert len(p) == len(xyz) + 3 and (f[:len(faces)] == faces).all()
+    assert boundary_loop_count(f) == boundary_loop_count(faces) - 3 == 2  # outer border and the big hole
+    fan_area = triangle_areas(p, f[len(faces):]).sum()
+    assert fan_area == pytest.approx(3.0)
+    he = _edge_uses(f)
+    directed = set(map(tuple, he.tolist()))
+    assert len(directed) == len(he)  # no edge twice the same way: orientation consistent
+    assert hole_fans(*_grid_with_holes(holes=())) is None  # nothing to fill
+
+
+def test_a_flat_region_with_small_holes_flattens_isometrically_without_cuts():
+    """A flat grid with one-cell holes is already a plane: flattened with its holes filled, it
+    keeps every face in order, adds no seam, maps isometrically (energy excess ~0), and each
+    hole is still a unit square inside the island (its 4 border edges of length 1)."""
+    from texture.holes import flatten_filled
+    from texture.relax import RelaxConfig, crossing_edges, energy_excess
+
+    xyz, faces = _grid_with_holes()
+    got = flatten_filled(xyz, faces, RelaxConfig(iterations=50, min_gain=1e-4), 0.1, 8)
+    assert got is not None and got.added == pytest.approx(0.0, abs=1e-9) and got.cut_edges == 0
+    np.testing.assert_array_equal(got.source[got.faces], faces)  # same faces, same order, same corners
+    assert (signed_areas(got.uv, got.faces) > 0).all() and not len(crossing_edges(got.faces, got.uv))
+    assert energy_excess(xyz[got.source], got.uv, got.faces) < 1e-6
+    # pairwise distances in UV equal those in 3D (an isometry of a flat, connected grid)
+    i, j = np.random.default_rng(0).integers(0, len(got.uv), (2, 200))
+    d3 = np.linalg.norm(xyz[got.source[i]] - xyz[got.source[j]], axis=1)
+    np.testing.assert_allclose(np.linalg.norm(got.uv[i] - got.uv[j], axis=1), d3, atol=1e-6)
+
+
+def test_a_curved_region_with_small_holes_takes_less_seam_filled_than_cut_to_a_disk():
+    """A sphere cap (z > -0.2) with six one-face holes: cut to a disk, every hole is joined to
+    the border by a cut; filled, the island keeps its holes, is injective and its slits add
+    less seam than those cuts. ``flatten_region`` then keeps the filled island (``holed``)."""
+    from texture.flatten import cut_to_disk
+    from texture.holes import cut_seam, flatten_filled
+    from texture.relax import RelaxConfig, crossing_edges, energy_excess
+    from texture.unwrap import UnwrapConfig
+    from texture.unwrap_islands import flatten_region, holed_rule
+
+    s = trimesh.creation.icosphere(subdivisions=4)
+    c = s.vertices[s.faces].mean(1)
+    keep = c[:, 2] > -0.2
+    rng = np.random.default_rng(3)
+    inner = np.flatnonzero(keep & (c[:, 2] > 0.2))
+    keep[rng.choice(inner, 6, replace=False)] = False
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    cfg = UnwrapConfig()
+    got = flatten_filled(xyz, faces, RelaxConfig(iterations=200, min_gain=1e-4), cfg.slit_target, cfg.max_slits)
+    assert got is not None
+    np.testing.assert_array_equal(got.source[got.faces], faces)
+    assert (signed_areas(got.uv, got.faces) > 0).all() and not len(crossing_edges(got.faces, got.uv))
+    assert energy_excess(xyz[got.source], got.uv, got.faces) <= cfg.slit_target
+    cut = cut_seam(xyz, faces, cut_to_disk(xyz, faces))
+    assert 0 <= got.added < cut
+    stats = {"region_splits": 0, "cut_edges": 0}
+    out = flatten_region(xyz, faces, np.arange(len(faces)), 0, 0, stats, holed_rule(cfg))
+    assert len(out) == 1 and out[0].holed and stats["filled"] == 1 and len(out[0].faces) == len(faces)
