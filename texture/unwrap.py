@@ -52,6 +52,7 @@ from mnacore.uvmesh import UVMesh, weld_ids
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .borders import shortest_borders
 from .ears import move_ears
+from .halving import refine_islands, split_long_islands
 from .merge import merge_islands
 from .meshprep import prepare_mesh
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
@@ -62,10 +63,8 @@ from .unwrap_islands import (
     flatten_region,
     holed_rule,
     prefer_whole,
-    refine_islands,
     relax_islands,
     slit_islands,
-    split_long_islands,
     whole_components,
 )
 from .unwrap_layout import choose_layout
@@ -123,7 +122,7 @@ class UnwrapConfig:
     """Most halvings for ``target_distortion``."""
     long_fill: float = 0.6
     """Islands longer than the side of a square holding all islands at this utilisation are
-    halved across their length (:func:`texture.unwrap_islands.split_long_islands`)."""
+    halved across their length (:func:`texture.halving.split_long_islands`)."""
     long_max_splits: int = 4
     """Most such halvings (0 = off)."""
     long_max_islands: int = 8

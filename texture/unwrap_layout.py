@@ -15,7 +15,7 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    once its mirrored islands were turned back, it won only on the eight uncut (0.50), but
    it won four of the six halving rounds. So every layout is packed in several modes and
    the best is kept.
-2. **Halvings** (:func:`texture.unwrap_islands.halve_across`), only while no layout reaches
+2. **Halvings** (:func:`texture.halving.halve_across`), only while no layout reaches
    ``cfg.pack_target``: one of the ``PACK_CUT_ISLANDS`` largest islands cut in two along mesh
    edges (UVs kept, so flips, overlap and distortion do not change), across or along its
    principal axis, in the middle or a quarter off one end. A halving adds seam, so it is kept
@@ -37,12 +37,13 @@ from scipy.spatial import ConvexHull, QhullError
 
 from mnacore.triangles import triangle_areas
 
+from .halving import LONG_CUTS, halve_across, island_parts, may_halve
 from .outlines import island_outlines
 from .pack import Packing, pack_islands
 from .regions import face_adjacency
 from .scale_search import estimate_layouts, plan_layouts
 from .similarity import similarity_fit
-from .unwrap_islands import LONG_CUTS, Island, halve_across, island_parts, may_halve
+from .unwrap_islands import Island
 
 #: (turn every island to its minimum-area bounding rectangle first, xatlas PackOptions)
 PACK_MODES: tuple[tuple[bool, dict], ...] = (

@@ -408,7 +408,7 @@ def test_islands_too_long_to_pack_densely_are_halved_with_their_uvs_kept():
     utilisation 0.6 has side 5.8, so the strip is halved across its length (cut length 1),
     then its halves (8 long) once more; each piece keeps its faces' UV triangles. With a
     looser fill (side >= 16) nothing is cut."""
-    from texture.unwrap_islands import _principal_extent, split_long_islands
+    from texture.halving import _principal_extent, split_long_islands
 
     strip, square = _flat_island(16, 1), _flat_island(2, 2, x0=20.0, first_face=32)
     before = {int(w): uv for isl in (strip, square) for w, uv in zip(isl.work_faces, isl.uv[isl.faces])}
@@ -443,7 +443,7 @@ def test_a_part_of_one_island_is_halved_for_length_only_when_it_is_a_strip():
     ``LONE_LONG`` atlas sides: a 40 x 1 strip alone (side at fill 0.6: 8.2) is halved, into
     pieces no longer than that bound; a 12 x 4 island alone (longer than the side, 8.9, but
     not a strip) is left whole. Each on its own part (component)."""
-    from texture.unwrap_islands import LONE_LONG, _principal_extent, split_long_islands
+    from texture.halving import LONE_LONG, _principal_extent, split_long_islands
 
     cfg = UnwrapConfig()
     strip = _flat_island(40, 1)
@@ -480,7 +480,7 @@ def test_a_cut_that_would_zigzag_along_long_faces_is_refused():
     faces the cut runs straight around it (length 2.5, the island's width); with one row of
     faces spanning the height there is no edge across, the cut would run up and down the
     faces (tens of units of seam), and no halving is made. ``zigzag`` tells the two apart."""
-    from texture.unwrap_islands import _sub_island, halve_across, zigzag
+    from texture.halving import _sub_island, halve_across, zigzag
 
     fine = _unrolled_tube(30)
     halves, cut = halve_across(fine)
