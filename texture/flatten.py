@@ -249,7 +249,7 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     face count); the above runs only where that fails, and not above ``cfg.slim_max_faces``
     faces: there the start is kept (mode ``start``), and the unwrap's split stage halves the disk.
     """
-    from .relax import crossing_edges, energy_excess, relax_island
+    from .relax import energy_excess, is_injective, relax_island
 
     if 0 < cfg.multires_faces < len(faces):
         from .multires import is_convex_border, relax_multires
@@ -265,18 +265,15 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
         if 0 < cfg.slim_max_faces < len(faces):  # SLIM would take minutes: the split stage halves it
             return uv, {"mode": "start", "iterations": 0, "excess": energy_excess(xyz, uv, faces)}
 
-    def ok(u):
-        return np.isfinite(u).all() and (signed_areas(u, faces) > 0).all() and not len(crossing_edges(faces, u))
-
     free = relax_island(xyz, uv, faces, cfg, check_crossings=False)
-    if ok(free.uv):
+    if is_injective(free.uv, faces):
         return free.uv, {"mode": "free", "iterations": free.iterations, "excess": free.excess_after}
     from dataclasses import replace
 
     if free.valid_uv is not None:
         uv = free.valid_uv
     guarded = relax_island(xyz, uv, faces, replace(cfg, pin_rounds=GUARD_PIN_ROUNDS), check_crossings=True)
-    if ok(guarded.uv):
+    if is_injective(guarded.uv, faces):
         return guarded.uv, {"mode": "guarded", "iterations": free.iterations + guarded.iterations,
                             "excess": guarded.excess_after}
     return uv, {"mode": "start", "iterations": free.iterations + guarded.iterations,

@@ -13,7 +13,7 @@ import numpy as np
 from mnacore.triangles import signed_areas, triangle_areas
 
 from .ears import smooth_cut
-from .relax import boundary_edges, energy_excess
+from .relax import boundary_length, energy_excess
 from .unwrap_islands import BLOWUP, SPLIT, Island, flatten_halves, holed_rule, relax_islands, slit_islands
 
 
@@ -32,18 +32,12 @@ def atlas_distortion(islands: list[Island]) -> float:
     return D.all_distortions(D.metric_tensor(np.concatenate(jac)), weights=np.concatenate(ws)).metric
 
 
-def border_length(isl: Island) -> float:
-    """3D length of the island's border (its seams and the surface's own open border)."""
-    e = boundary_edges(isl.faces)
-    return float(np.linalg.norm(isl.xyz[e[:, 0]] - isl.xyz[e[:, 1]], axis=1).sum())
-
-
 def zigzag(isl: Island, pieces: list[Island]) -> bool:
     """Whether cutting ``isl`` into ``pieces`` added more seam than ``ZIGZAG`` times the
     island's 3D diameter (its bounding box's diagonal): a cut across a region runs no longer
     than the region is wide where the mesh has edges that way; where it has none (long thin
     faces) the cut zigzags along them (see ``ZIGZAG``)."""
-    added = 0.5 * (sum(border_length(p) for p in pieces) - border_length(isl))
+    added = 0.5 * (sum(boundary_length(p.xyz, p.faces) for p in pieces) - boundary_length(isl.xyz, isl.faces))
     return added > ZIGZAG * float(np.linalg.norm(np.ptp(isl.xyz, axis=0)))
 
 
@@ -147,10 +141,10 @@ def _one_piece(adj, mask: np.ndarray) -> bool:
 
 
 #: a halving whose cut (along mesh edges) is longer than this many times the island's width
-#: across it is refused: the mesh has no edges running across there, and the cut zigzags along
-#: the faces' long edges (a capsule whose side is one ring of faces spanning its height: a
-#: cut across it ran up and down 20 of them, seam 63 against a circumference of 2.5). An
-#: edge path across a fair triangulation is at most about 1.3x its straight line.
+#: across it is refused: the mesh has no edges running across there (faces as long as the
+#: island, e.g. a tube whose side is one ring of faces spanning its height), and the cut
+#: would zigzag up and down their long edges, adding many times the seam a straight cut
+#: would. An edge path across a fair triangulation is at most about 1.3x its straight line.
 ZIGZAG = 2.0
 #: cut positions tried by :func:`split_long_islands`: these fractions of the island's area
 #: lie before the cut along its principal axis.
@@ -198,18 +192,19 @@ def may_halve(islands_in_part: int, cfg) -> bool:
     """Whether an island of a part (connected component) holding ``islands_in_part`` islands
     may be halved for its length or for an ordinary packing gain. Never past
     ``cfg.long_max_islands``, and not a part that flattened as one island: that is the fewest
-    seams it can have (none on an open, disk-like part; halving inspired_mesh's one island
-    for its length raised the utilisation 0.60 -> 0.63 at a seam of 0.86 where xatlas has
-    none). Such a part is halved only by the packing search, for
-    ``cfg.pack_first_seam_gain`` (:mod:`texture.unwrap_layout`)."""
+    seams it can have (none on an open, disk-like part), and a compact island just over the
+    atlas side costs only a few hundredths of utilisation, less than a first seam is worth.
+    Such a part is halved only by the packing search, for ``cfg.pack_first_seam_gain``
+    (:mod:`texture.unwrap_layout`), or for its length where it is a strip (:data:`LONE_LONG`)."""
     return 1 < islands_in_part < cfg.long_max_islands
 
 
 #: a part that flattened as one island (its fewest seams) is halved for its length only when
-#: it is this many times longer than the atlas side: it alone then caps utilisation below a
-#: quarter of ``long_fill`` (a tube unrolled to one strip: 0.03-0.04 on a knotted tube and a
-#: washer), where a near-square part just over the side is left whole (halving inspired_mesh's
-#: one island raised its utilisation 0.60 -> 0.63 at a seam of 0.86 where xatlas has none)
+#: it is this many times longer than the atlas side. The atlas must be at least as wide as
+#: the island is long, so such an island alone caps utilisation below a quarter of
+#: ``long_fill`` whatever the packer does: it is a strip (a tube unrolled whole), and the
+#: first seam buys several times the utilisation; a compact island just over the side caps
+#: it only a little, and stays whole (:func:`may_halve`).
 LONE_LONG = 2.0
 
 

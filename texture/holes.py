@@ -2,9 +2,9 @@
 
 A scan or a cleaned-up mesh often has small holes (a missing face, a gap the scanner did
 not see). :func:`texture.flatten.cut_to_disk` makes a disk of a region with holes by cutting
-from every hole to the border: on a sphere with 3 % of its faces missing (150 one-face
-holes) that gave islands shaped like trees, seam 11.5 and utilisation 0.33, where xatlas
-(whose charts keep holes) had 7.4 and 0.56. The holed rule of :mod:`texture.unwrap_islands`
+from every hole to the border: with many holes the cuts join them into a tree, and the
+island becomes a ragged, branching shape with long seams that packs poorly (measured in
+docs/unwrap.md). The holed rule of :mod:`texture.unwrap_islands`
 keeps a region's holes only where its uncut conformal map is already within the bound, with
 no slits.
 
@@ -16,11 +16,10 @@ unflipped and inside the border, so the hole's border neither crosses itself nor
 A hole is small when its fan covers at most ``FILL_AREA`` of the region's area: the fill
 then barely constrains the map (SLIM treats its faces as surface).
 
-The filled region may need slits where the cut one would not (a plate's face with six
-holes, bent into its walls: the cuts from the holes to the border had relieved the bend,
-and the slits that replaced them opened into wide notches, utilisation 0.61 -> 0.44), so
-the caller keeps the filled flattening only where its seams (slits, cuts for handles) are
-no longer than the cuts to a disk it saves (:func:`cut_seam`).
+The filled region may need slits where the cut one would not: cuts from the holes to the
+border also relieve a region's curvature, and the slits that replace them can open into
+wide notches. So the caller keeps the filled flattening only where its seams (slits, cuts
+for handles) are no longer than the cuts to a disk it saves (:func:`cut_seam`).
 """
 from __future__ import annotations
 
@@ -31,7 +30,7 @@ import numpy as np
 from mnacore.triangles import signed_areas, triangle_areas
 
 from .flatten import cut_to_disk, relax_disk, start_map
-from .relax import MULTIRES_FACES, boundary_edges
+from .relax import MULTIRES_FACES, boundary_edges, boundary_length
 from .slits import slit_island
 
 #: a hole whose fan covers at most this share of the region's 3D area is filled for flattening
@@ -52,14 +51,9 @@ class Filled:
     cut_edges: int
 
 
-def _border(xyz: np.ndarray, faces: np.ndarray) -> float:
-    e = boundary_edges(faces)
-    return float(np.linalg.norm(xyz[e[:, 0]] - xyz[e[:, 1]], axis=1).sum())
-
-
 def cut_seam(xyz: np.ndarray, faces: np.ndarray, disk) -> float:
     """3D length of the cuts :func:`texture.flatten.cut_to_disk` made (``disk``) in the region."""
-    return 0.5 * (_border(xyz[disk.source], disk.faces) - _border(xyz, faces))
+    return 0.5 * (boundary_length(xyz[disk.source], disk.faces) - boundary_length(xyz, faces))
 
 
 def hole_fans(xyz: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -123,5 +117,5 @@ def flatten_filled(xyz: np.ndarray, faces: np.ndarray, relax, target: float, max
     if (source >= len(xyz)).any():  # a centroid is only in fill faces
         return None
     f_out = inv.reshape(-1, 3)
-    added = 0.5 * (_border(xyz[source], f_out) - _border(xyz, faces))
+    added = 0.5 * (boundary_length(xyz[source], f_out) - boundary_length(xyz, faces))
     return Filled(f_out, cut.uv[used], source, added, disk.cut_edges)

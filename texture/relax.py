@@ -97,6 +97,18 @@ def boundary_edges(faces: np.ndarray) -> np.ndarray:
     return half_edges(faces)[once]
 
 
+def boundary_length(xyz: np.ndarray, faces: np.ndarray) -> float:
+    """3D length of the boundary edges of ``faces`` (into ``xyz``)."""
+    e = boundary_edges(faces)
+    return float(np.linalg.norm(xyz[e[:, 0]] - xyz[e[:, 1]], axis=1).sum())
+
+
+def is_injective(uv: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether the map is finite, flips no face and its border does not cross itself: for a
+    flip-free map the island then does not overlap itself (:func:`crossing_edges`)."""
+    return bool(np.isfinite(uv).all() and (signed_areas(uv, faces) > 0).all() and not len(crossing_edges(faces, uv)))
+
+
 def crossing_edges(faces: np.ndarray, uv: np.ndarray, edges: np.ndarray | None = None) -> np.ndarray:
     """(K, 2, 2) vertex pairs of the boundary edges that cross another boundary edge in UV
     (one row per crossing pair of edges sharing no vertex).

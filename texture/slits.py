@@ -24,7 +24,7 @@ from mnacore.triangles import signed_areas, triangle_areas
 
 from .distortion_faces import face_geometry
 from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
-from .relax import MULTIRES_FACES, RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island
+from .relax import MULTIRES_FACES, RelaxConfig, boundary_edges, energy_excess, is_injective, relax_island
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
 MAX_MISSES = 2
@@ -96,27 +96,21 @@ def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray |
     return relax_disk(xyz, uv, faces, cfg)[0]
 
 
-def _injective(uv: np.ndarray, faces: np.ndarray) -> bool:
-    return bool(np.isfinite(uv).all() and (signed_areas(uv, faces) > 0).all() and not len(crossing_edges(faces, uv)))
-
-
 def _opened(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
     """The slit island relaxed from its map before the cut (``closed``: the two sides of the
     slit on top of each other), or None where no injective map came of it.
 
     Free SLIM opens the slit where that lowers the energy, from a map that is already relaxed
     everywhere else: a fresh start (conformal or Tutte) has to relax the whole island again,
-    and within the iterations a merge trial affords it ended above the uncut island (a
-    16.6k-face union on the 111k-face bunny: excess 1.81 uncut, 2.13 and 4.29 after one and
-    two slits re-embedded, 0.058 after one slit opened from the relaxed map). Where the
-    opened sides still touch or cross somewhere (they start on top of each other), the
-    crossing is repaired in place (:func:`texture.multires.untangle`, then
-    :func:`texture.multires.polish`)."""
+    and on a large irregular island it can end, within the iterations a merge trial affords,
+    above the uncut island (measured in docs/unwrap.md). Where the opened sides still touch
+    or cross somewhere (they start on top of each other), the crossing is repaired in place
+    (:func:`texture.multires.untangle`, then :func:`texture.multires.polish`)."""
     from .islands import vertex_adjacency
     from .multires import polish, untangle
 
     run = relax_island(xyz, closed, faces, cfg, check_crossings=False)
-    if _injective(run.uv, faces):
+    if is_injective(run.uv, faces):
         return run.uv
     tried = [run.valid_uv] if run.valid_uv is not None else []
     if np.isfinite(run.uv).all() and (signed_areas(run.uv, faces) > 0).all():
@@ -126,27 +120,22 @@ def _opened(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxCo
         if fixed is not None:
             # the repair squashes the faces around the crossing: guarded SLIM relaxes them again
             tried.append(relax_island(xyz, polish(xyz, *fixed, faces, adj, edges), faces, cfg).uv)
-    tried = [u for u in tried if _injective(u, faces)]
+    tried = [u for u in tried if is_injective(u, faces)]
     return min(tried, key=lambda u: energy_excess(xyz, u, faces)) if tried else None
 
 
 def _relaxed_cut(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxConfig) -> tuple[np.ndarray | None, float]:
     """(UVs of the slit island, their energy excess), (None, inf) where no map was found.
 
-    The slit opened from the relaxed map (:func:`_opened`) first: it can only lower the
-    energy, and on the 13 benchmark meshes it gave shorter seams than re-embedding (merges
-    that re-embedding refused: bunny seam 5.09 -> 4.17, truck 7.45 -> 7.16, the 111k-face
-    bunny 5.35 -> 5.12; re-embedding first, then opening where that did not help: bunny
-    4.47, truck 7.36). Where the opened map is no better than the closed one, the sides of
-    the slit wanted to overlap (a saddle, not a cap: a genus-2 shape of 1.5k faces cut to
-    one disk, excess 0.102 closed, 0.219 opened and repaired), and a fresh embedding
-    (:func:`_embed`) is tried too (0.089 there); the better is kept. Above
+    The slit opened from the relaxed map (:func:`_opened`) first: SLIM descends from the
+    map before the cut, so it keeps what was relaxed. Where the opened map is no better
+    than the closed one, the slit's sides wanted to overlap (around a saddle there is more
+    angle than in a plane; around a cap, less), and a fresh embedding (:func:`_embed`),
+    which may leave that local optimum, is tried too; the better is kept. Above
     ``cfg.multires_faces`` faces only the fresh embedding runs (SLIM on the whole island from
     the closed map would cost minutes)."""
-    found = []
-    if not 0 < cfg.multires_faces < len(faces):
-        found.append(_opened(xyz, faces, closed, cfg))
-    tried = [(u, float(energy_excess(xyz, u, faces))) for u in found if u is not None]
+    opened = None if 0 < cfg.multires_faces < len(faces) else _opened(xyz, faces, closed, cfg)
+    tried = [] if opened is None else [(opened, float(energy_excess(xyz, opened, faces)))]
     if not tried or tried[0][1] >= energy_excess(xyz, closed, faces):
         fresh = _embed(xyz, faces, cfg)
         if fresh is not None:
