@@ -1,11 +1,9 @@
-"""Point-to-mesh projection, surface sampling and boundary edges (numpy + scipy only).
+"""Point-to-mesh projection, surface sampling and boundary edges.
 
 ``MeshProjector`` finds, for query points, the exact closest point on a triangle mesh of
-any triangle sizes: a KD-tree over proxy points (triangle centroids, large triangles
-subdivided) proposes candidate triangles, the exact point-triangle closest point (Ericson,
-*Real-Time Collision Detection*, 5.1.5) picks the best, and a distance certificate sends
-the few points it cannot vouch for to an exhaustive search of the ball that must hold the
-answer.
+any triangle sizes (libigl's AABB tree), and every triangle within a radius of a point (a
+KD-tree over proxy points: triangle centroids, large triangles subdivided, and an exact
+point-triangle test).
 """
 from __future__ import annotations
 
@@ -97,69 +95,71 @@ def _proxies(tri: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
 class MeshProjector:
     """Exact closest points on a fixed triangle mesh ``(vertices (V,3), faces (F,3))``.
 
-    A KD-tree over proxy points (:func:`_proxies`: each triangle's centroid, or the
-    centroids of a subdivision of a large triangle, so every proxy stands for a piece of
-    radius at most ``self.radius``) proposes the triangles of the ``k`` nearest proxies, and
-    the exact point-triangle closest point (Ericson, *Real-Time Collision Detection*,
-    5.1.5) picks the best, at distance ``d``. The answer is certified: a triangle that is
-    not a candidate lies farther than ``k``-th proxy distance minus ``radius``. Points whose
-    certificate fails (meshes with very different triangle sizes, queries far from the
-    surface) are redone over every triangle with a proxy within ``d + radius``. So the
-    result is exact for any mesh, not only near-uniform ones.
+    :meth:`project` asks libigl's AABB tree (``igl.AABB.squared_distance``: exact, any
+    triangle sizes) for the nearest face of each point, and takes the point and its
+    barycentric coordinates on that face from the exact point-triangle closest point
+    (Ericson, *Real-Time Collision Detection*, 5.1.5), whose regions give exact zeros on
+    edges and corners (the open-border test needs them). A KD-tree of proxy points
+    (:func:`_proxies`) serves :meth:`faces_within`, the ball queries the tree has no call
+    for; it is built on first use.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 8, max_proxies: int | None = None):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, max_proxies: int | None = None):
         self.vertices = np.asarray(vertices, np.float64)
         self.faces = np.asarray(faces, np.int64)
-        tri = self.vertices[self.faces]
-        r = np.linalg.norm(tri - tri.mean(1)[:, None], axis=2).max(1) if len(tri) else np.zeros(0)
-        #: every point of a triangle lies within this of one of its proxies: half the median
-        #: triangle's radius (measured fastest; a whole median radius builds faster but
-        #: queries slower, no gain overall), coarser if a few huge triangles would need more
-        #: than ``max_proxies`` (default 4 per triangle, at least 10^6)
-        self.radius = float(max(0.5 * np.median(r), 1e-12 * max(r.max(), 1e-300))) if len(r) else 0.0
-        budget = max_proxies or max(4 * len(r), 1_000_000)
-        while len(r) and (np.maximum(np.ceil(r / self.radius), 1) ** 2).sum() > budget:
-            self.radius *= 1.5
-        proxy, self._proxy_face = _proxies(tri, self.radius) if len(tri) else (np.zeros((0, 3)), np.zeros(0, np.int64))
-        self.tree = cKDTree(proxy, balanced_tree=False, compact_nodes=False)
-        self.k = int(min(k, len(proxy)))
+        self._max_proxies = max_proxies
+        self._tree = self._aabb = None  # built on first use (and again after unpickling)
         keys = edge_keys(np.arange(len(self.vertices)), self.faces)
         # boundary[f, i]: the edge opposite corner i of face f is used by one face only
         open_edge = (edge_use_counts(keys) == 1).reshape(-1, 3)  # edge j joins corners j, j+1
         self.boundary = open_edge[:, [1, 2, 0]]
 
-    def project(self, points: np.ndarray, max_distance: float | None = None, chunk: int = 200_000) -> Projection:
-        """Closest points; with ``max_distance`` points farther than it get ``distance = inf``, face -1.
+    def __getstate__(self) -> dict:
+        # libigl's tree does not pickle (projectors are shared with worker processes)
+        return {**self.__dict__, "_aabb": None, "_tree": None}
 
-        The bound makes far queries cheap (a KD-tree k-NN search far from the data is slow).
-        """
-        points = np.asarray(points, np.float64)
+    @property
+    def aabb(self):
+        """libigl's AABB tree of the faces (None for a mesh without faces)."""
+        if self._aabb is None and len(self.faces):
+            import igl
+
+            self._aabb = igl.AABB()
+            self._aabb.init(self.vertices, self.faces)
+        return self._aabb
+
+    @property
+    def tree(self) -> cKDTree:
+        """KD-tree over proxy points: every point of a triangle lies within ``self.radius``
+        of one of its proxies (half the median triangle's radius, coarser if a few huge
+        triangles would need more than ``max_proxies``, default 4 per triangle, at least 10^6)."""
+        if self._tree is None:
+            tri = self.vertices[self.faces]
+            r = np.linalg.norm(tri - tri.mean(1)[:, None], axis=2).max(1) if len(tri) else np.zeros(0)
+            self.radius = float(max(0.5 * np.median(r), 1e-12 * max(r.max(), 1e-300))) if len(r) else 0.0
+            budget = self._max_proxies or max(4 * len(r), 1_000_000)
+            while len(r) and (np.maximum(np.ceil(r / self.radius), 1) ** 2).sum() > budget:
+                self.radius *= 1.5
+            proxy, self._proxy_face = (_proxies(tri, self.radius) if len(tri)
+                                       else (np.zeros((0, 3)), np.zeros(0, np.int64)))
+            self._tree = cKDTree(proxy, balanced_tree=False, compact_nodes=False)
+        return self._tree
+
+    def project(self, points: np.ndarray, max_distance: float | None = None, chunk: int = 1_000_000) -> Projection:
+        """Closest points; with ``max_distance`` points farther than it get ``distance = inf``, face -1."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
         parts = [self._project(points[i:i + chunk], max_distance) for i in range(0, max(len(points), 1), chunk)]
         return Projection(*(np.concatenate([p[j] for p in parts]) for j in range(5)))
 
     def _project(self, p: np.ndarray, max_distance: float | None):
-        n, k = len(p), self.k
+        n = len(p)
         out = (np.zeros((n, 3)), np.full(n, np.inf), np.full(n, -1), np.zeros((n, 3)), np.zeros(n, bool))
-        if n == 0 or k == 0:
+        if n == 0 or self.aabb is None:
             return out
-        bound = np.inf if max_distance is None else max_distance + self.radius
-        dist, cand = self.tree.query(p, k=k, distance_upper_bound=bound)
-        dist, cand = dist.reshape(n, k), cand.reshape(n, k)
-        near = np.isfinite(dist[:, 0])  # else: no triangle within max_distance
-        if not near.any():
-            return out
-        faces = self._proxy_face[np.where(np.isfinite(dist), cand, cand[:, :1])[near]]
-        sub = self._exact(p[near], faces)
+        _, face, _ = self.aabb.squared_distance(self.vertices, self.faces, np.ascontiguousarray(p))
+        sub = self._exact(p, np.asarray(face, np.int64)[:, None])
         for o, v in zip(out, sub):
-            o[near] = v
-        # certificate: a triangle without a proxy among the k lies beyond dist[:, -1] - radius
-        idx = np.flatnonzero(near)
-        # (with max_distance, a triangle beyond it cannot matter: certified once the rest are)
-        limit = out[1][near] if max_distance is None else np.minimum(out[1][near], max_distance)
-        redo = idx[dist[near, -1] - self.radius < limit]
-        if len(redo):
-            self._redo(p, redo, out, max_distance)
+            o[:] = v
         if max_distance is not None:
             far = out[1] > max_distance
             out[1][far], out[2][far] = np.inf, -1
@@ -169,12 +169,13 @@ class MeshProjector:
         """Batches of ``(i, face)``: each triangle with a proxy within ``radius[i] + self.radius``
         of ``points[i]`` (so every triangle within ``radius[i]``), once per point; a batch
         holds at most about ``budget`` proxies."""
+        tree = self.tree  # built (and self.radius set) on first use
         r = radius + self.radius
-        size = self.tree.query_ball_point(points, r, return_length=True, workers=-1)
+        size = tree.query_ball_point(points, r, return_length=True, workers=-1)
         batch = np.cumsum(size) // budget
         for b in np.unique(batch):
             sel = np.flatnonzero(batch == b)
-            balls = self.tree.query_ball_point(points[sel], r[sel], workers=-1)
+            balls = tree.query_ball_point(points[sel], r[sel], workers=-1)
             face = self._proxy_face[np.concatenate(balls).astype(np.int64)]
             pair = np.unique(np.repeat(sel, size[sel]) * len(self.faces) + face)  # grouped by point
             yield pair // len(self.faces), pair % len(self.faces)
@@ -195,19 +196,6 @@ class MeshProjector:
                 keep = d <= radius[i]
                 out.append((i[keep], face[keep], d[keep]))
         return tuple(np.concatenate(x) for x in zip(*out))
-
-    def _redo(self, p: np.ndarray, redo: np.ndarray, out: tuple, max_distance: float | None = None) -> None:
-        """Exhaustive search, in place, for the points ``redo``: every triangle with a proxy
-        within (current distance, or ``max_distance`` if smaller, + radius) of the point
-        (that ball holds the answer, or shows there is none within ``max_distance``)."""
-        reach = out[1][redo] if max_distance is None else np.minimum(out[1][redo], max_distance)
-        for point, face in self._ball_pairs(p[redo], reach):
-            q, d, f, bary, ob = self._exact(p[redo[point]], face[:, None])
-            first = np.lexsort((d, point))
-            first = first[np.r_[True, point[first][1:] != point[first][:-1]]]  # nearest per point
-            i = redo[point[first]]
-            for o, v in zip(out, (q, d, f, bary, ob)):
-                o[i] = v[first]
 
     def _exact(self, p: np.ndarray, cand: np.ndarray):
         n, k = cand.shape
