@@ -57,10 +57,16 @@ BULGE = 0.02
 #: a coarse face whose 3D area is below this times its longest edge squared is degenerate
 FLAT = 1e-6
 #: a coarse face with a 3D edge longer than this many coarse spacings is refined, at most
-#: REFINE_ROUNDS times; FIX_ROUNDS bounds the repair rounds of both kinds
+#: REFINE_ROUNDS times; FIX_ROUNDS bounds the repair rounds of both kinds. A border that runs
+#: straight in 3D (a slit's sides, a flat part's edge) lies on the Tutte map's circle, where
+#: Delaunay joins consecutive border vertices into faces that are flat in 3D: each round drops
+#: those, and the next three along the run become the next flat face, so the rounds grow with
+#: the runs' length (a 51k-face flat sheet with eight straight slits: 48 rounds; 16 failed
+#: there and on an unwrap region after eight slits, which SLIM then relaxed at 5 s a slit).
+#: A round is one Delaunay triangulation of the coarse vertices (milliseconds).
 LONG = 3.0
 REFINE_ROUNDS = 6
-FIX_ROUNDS = 16
+FIX_ROUNDS = 64
 #: patch-growing rounds of the untangling
 UNTANGLE_ROUNDS = 8
 #: rounds of held vertices in the ARAP relaxation (each refactors its system: 3.8 s at 422k
