@@ -94,7 +94,7 @@ def _shared_borders(islands: list[Island], adj, n_faces: int) -> dict[tuple[int,
     return {(int(k // n), int(k % n)): float(w) for k, w in zip(keys, length)}
 
 
-def _pairs(islands: list[Island], shared: dict, failed: set, cfg) -> list[tuple[int, int]]:
+def _pairs(islands: list[Island], shared: dict, failed: dict, cfg) -> list[tuple[int, int]]:
     """This round's pairs: neighbours by shared border, longest first, each island in one pair
     at most, none that failed before, none above ``cfg.merge_max_faces`` faces."""
     busy: set[int] = set()
@@ -134,7 +134,10 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     interior = interior_edges(work_faces)
     holed = holed_rule(cfg)
     seam = [island_seam(isl, interior) for isl in islands]
-    failed: set[tuple[int, int]] = set()  # pairs of islands (by identity) whose union failed
+    # pairs of islands (by identity) whose union failed; the islands are kept with their ids, so
+    # that an island merged away and freed cannot hand its id to a new one (which would then
+    # pass for the failed pair's member and never be tried)
+    failed: dict[tuple[int, int], tuple[Island, Island]] = {}
     while True:  # each round merges a pair or fails one more: it ends when no pair is left
         shared = _shared_borders(islands, adj, len(work_faces))
         todo = _pairs(islands, shared, failed, cfg)
@@ -160,7 +163,7 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
                 st["merges"] += 1
                 st["seam_removed"] += seam[p] + seam[q] - new_seam
             else:
-                failed.add((id(islands[p]), id(islands[q])))
+                failed[(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])
         keep = [k for k in range(len(islands)) if k not in drop]
         islands = [islands[k] for k in keep] + add
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
