@@ -13,7 +13,9 @@ like any region (:func:`texture.unwrap_islands.flatten_region`), and it replaces
 - its seams are shorter than the two islands' together (a union that is not a disk needs
   cuts, and slits add seams: the border it removes must pay for them).
 
-Neighbours are tried in order of the border they share (longest first), in rounds: each
+Two islands whose mean energy excess (area-weighted) is above ``cfg.slit_target`` are not
+tried (:func:`_pairs`: the union's map restricted to each is a map of it). Neighbours are
+tried in order of the border they share (longest first), in rounds: each
 round a matching (no island in two pairs) is flattened at once (in parallel processes), the
 accepted pairs are merged, and a pair that failed is not tried again unless one side changed.
 Rounds go on until no untried pair is left, also after a round that merged nothing: the
@@ -40,6 +42,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+
+from mnacore.triangles import triangle_areas
 
 from .islands import edge_keys, edge_use_counts, half_edges
 from .relax import energy_excess
@@ -94,14 +98,34 @@ def _shared_borders(islands: list[Island], adj, n_faces: int) -> dict[tuple[int,
     return {(int(k // n), int(k % n)): float(w) for k, w in zip(keys, length)}
 
 
-def _pairs(islands: list[Island], shared: dict, failed: dict, cfg) -> list[tuple[int, int]]:
+def _strain(isl: Island) -> tuple[float, float]:
+    """(3D area, area times energy excess) of an island."""
+    area = float(triangle_areas(isl.xyz, isl.faces).sum())
+    return area, area * float(energy_excess(isl.xyz, isl.uv, isl.faces))
+
+
+def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list | None = None) -> list[tuple[int, int]]:
     """This round's pairs: neighbours by shared border, longest first, each island in one pair
-    at most, none that failed before, none above ``cfg.merge_max_faces`` faces."""
+    at most, none that failed before, none above ``cfg.merge_max_faces`` faces, and (with
+    ``strain``, :func:`_strain` of each island) none whose islands' mean energy excess is
+    above ``cfg.slit_target``.
+
+    The last rests on the union's map restricted to either island being a map of that
+    island: with the same slit budget (``cfg.max_slits``) for the two together, a union seldom
+    flattens an island better than the island's own relaxed and slit map did (only where its
+    cut or slits fall inside it), so its area-weighted excess is about at least the two
+    islands' mean, and its largest island's at least that. Islands within the bound always
+    pass. It skips the trials on a surface no few islands can flatten (crumpled below its
+    face size) and next to an island whose own slits stopped short of the bound; the trials
+    it saved, and that it lost no merge, are measured in docs/unwrap.md.
+    """
     busy: set[int] = set()
     out = []
     for p, q in sorted(shared, key=lambda pq: (-shared[pq], pq)):
+        strained = strain is not None and (
+            strain[p][1] + strain[q][1] > cfg.slit_target * (strain[p][0] + strain[q][0]))
         if (p in busy or q in busy or (id(islands[p]), id(islands[q])) in failed
-                or islands[p].kept_start or islands[q].kept_start
+                or islands[p].kept_start or islands[q].kept_start or strained
                 or len(islands[p].faces) + len(islands[q].faces) > cfg.merge_max_faces):
             continue
         busy.update((p, q))
@@ -134,13 +158,14 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     interior = interior_edges(work_faces)
     holed = holed_rule(cfg)
     seam = [island_seam(isl, interior) for isl in islands]
+    strain = [_strain(isl) for isl in islands]
     # pairs of islands (by identity) whose union failed; the islands are kept with their ids, so
     # that an island merged away and freed cannot hand its id to a new one (which would then
     # pass for the failed pair's member and never be tried)
     failed: dict[tuple[int, int], tuple[Island, Island]] = {}
     while True:  # each round merges a pair or fails one more: it ends when no pair is left
         shared = _shared_borders(islands, adj, len(work_faces))
-        todo = _pairs(islands, shared, failed, cfg)
+        todo = _pairs(islands, shared, failed, cfg, strain)
         if not todo:
             break
         unions = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q], holed) for p, q in todo]
@@ -167,4 +192,5 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         keep = [k for k in range(len(islands)) if k not in drop]
         islands = [islands[k] for k in keep] + add
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
+        strain = [strain[k] for k in keep] + [_strain(i) for i in add]
     return islands, st
