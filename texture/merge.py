@@ -104,11 +104,12 @@ def _strain(isl: Island) -> tuple[float, float]:
     return area, area * float(energy_excess(isl.xyz, isl.uv, isl.faces))
 
 
-def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list | None = None) -> list[tuple[int, int]]:
+def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list | None = None,
+           skipped: dict | None = None) -> list[tuple[int, int]]:
     """This round's pairs: neighbours by shared border, longest first, each island in one pair
     at most, none that failed before, none above ``cfg.merge_max_faces`` faces, and (with
     ``strain``, :func:`_strain` of each island) none whose islands' mean energy excess is
-    above ``cfg.slit_target``.
+    above ``cfg.slit_target`` (those go into ``skipped``, by the islands' ids).
 
     The last rests on the union's map restricted to either island being a map of that
     island: with the same slit budget (``cfg.max_slits``) for the two together, a union seldom
@@ -124,6 +125,8 @@ def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list 
     for p, q in sorted(shared, key=lambda pq: (-shared[pq], pq)):
         strained = strain is not None and (
             strain[p][1] + strain[q][1] > cfg.slit_target * (strain[p][0] + strain[q][0]))
+        if strained and skipped is not None:
+            skipped[(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])
         if (p in busy or q in busy or (id(islands[p]), id(islands[q])) in failed
                 or islands[p].kept_start or islands[q].kept_start or strained
                 or len(islands[p].faces) + len(islands[q].faces) > cfg.merge_max_faces):
@@ -151,7 +154,7 @@ def _union(islands: list[Island], p: int, q: int, xyz, work_faces, interior: Int
 def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg) -> tuple[list[Island], dict]:
     """(islands, stats): see the module docstring. ``adj``: the working mesh's face adjacency
     (:func:`texture.regions.face_adjacency`); ``cfg``: a :class:`texture.unwrap.UnwrapConfig`."""
-    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": []}
+    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": [], "skipped_strained": 0}
     if cfg.merge_max_faces <= 0 or len(islands) < 2:
         return islands, st
     trial_cfg = replace(cfg, slim_iterations=min(cfg.slim_iterations, MERGE_ITERATIONS))
@@ -159,13 +162,14 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     holed = holed_rule(cfg)
     seam = [island_seam(isl, interior) for isl in islands]
     strain = [_strain(isl) for isl in islands]
+    skipped: dict[tuple[int, int], tuple[Island, Island]] = {}  # pairs not tried for their strain
     # pairs of islands (by identity) whose union failed; the islands are kept with their ids, so
     # that an island merged away and freed cannot hand its id to a new one (which would then
     # pass for the failed pair's member and never be tried)
     failed: dict[tuple[int, int], tuple[Island, Island]] = {}
     while True:  # each round merges a pair or fails one more: it ends when no pair is left
         shared = _shared_borders(islands, adj, len(work_faces))
-        todo = _pairs(islands, shared, failed, cfg, strain)
+        todo = _pairs(islands, shared, failed, cfg, strain, skipped)
         if not todo:
             break
         unions = [_union(islands, p, q, xyz, work_faces, interior, seam[p] + seam[q], holed) for p, q in todo]
@@ -193,4 +197,5 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         islands = [islands[k] for k in keep] + add
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
         strain = [strain[k] for k in keep] + [_strain(i) for i in add]
+    st["skipped_strained"] = len(skipped)
     return islands, st

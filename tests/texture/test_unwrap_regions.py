@@ -104,12 +104,12 @@ def test_merge_refuses_a_union_that_would_distort():
     before = [i.uv.copy() for i in islands]
     loose = replace(cfg, slit_target=0.2)
     merged, st = merge_islands(islands, v, f, face_adjacency(v, f), loose)
-    assert st["merges"] == 0 and st["tried"] == 1
+    assert st["merges"] == 0 and st["tried"] == 1 and st["skipped_strained"] == 0
     assert len(merged) == 2 and all((m.uv == b).all() for m, b in zip(merged, before))
     assert st["trials"][0]["excess"] is None or st["trials"][0]["excess"] > loose.slit_target
     # the default bound: both islands above it, nothing tried
     merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
-    assert st["tried"] == 0 and len(merged) == 2
+    assert st["tried"] == 0 and st["skipped_strained"] == 1 and len(merged) == 2
     # off: nothing tried
     _, off = merge_islands(islands, v, f, face_adjacency(v, f), replace(loose, merge_max_faces=0))
     assert off["tried"] == 0
