@@ -62,7 +62,10 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
     if border.all():
         return None
     area = triangle_areas(xyz, faces)
-    e = np.where(np.isfinite(energy), energy, 0.0)
+    # a degenerate face (infinite energy: the far end of a bag that the start map shrank to
+    # nothing) is as distorted as any: it weighs as the most distorted finite face
+    finite = np.isfinite(energy)
+    e = np.where(finite, energy, max(float(energy[finite].max()), 1.0) if finite.any() else 1.0)
     num = np.bincount(faces.ravel(), weights=np.repeat(e * area, 3), minlength=V)
     den = np.bincount(faces.ravel(), weights=np.repeat(area, 3), minlength=V)
     he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)

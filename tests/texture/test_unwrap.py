@@ -575,3 +575,26 @@ def test_progress_names_every_stage_in_order_and_each_is_timed():
     assert seen == list(STAGES)
     t = res.stats["timings"]
     assert list(t) == list(STAGES) and all(v >= 0 for v in t.values())
+
+
+def test_a_slit_heads_for_degenerate_faces():
+    """Faces the map shrank to nothing (infinite energy: the far end of a bag) are as
+    distorted as the most distorted finite face, not undistorted: on a flat grid sheet with a
+    patch of finite peak energy near the border and one of degenerate faces in the middle,
+    the slit runs to the middle (deep inside) and not to the shallow finite peak."""
+    from texture.slits import slit_path
+
+    sheet = shapes.sheet(size=1.0, resolution=21)
+    xyz, faces = np.asarray(sheet.vertices), np.asarray(sheet.faces)
+    c = xyz[faces].mean(1)
+    energy = np.full(len(faces), 0.05)
+    near_border = np.linalg.norm(c[:, :2] - [0.35, 0.0], axis=1) < 0.08
+    middle = np.linalg.norm(c[:, :2], axis=1) < 0.08
+    energy[near_border] = 0.5
+    energy[middle] = np.inf
+    path = slit_path(xyz, faces, energy)
+    tip = xyz[path[-1], :2]
+    assert np.linalg.norm(tip) < 0.1  # in the degenerate patch, at the sheet's centre
+    # the same patch at finite energy, lower than the near-border peak: the path goes there
+    energy[middle] = 0.06
+    assert np.linalg.norm(xyz[slit_path(xyz, faces, energy)[-1], :2] - [0.35, 0.0]) < 0.1
