@@ -63,7 +63,8 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
         return None
     area = triangle_areas(xyz, faces)
     # a degenerate face (infinite energy: the far end of a bag that the start map shrank to
-    # nothing) is as distorted as any: it weighs as the most distorted finite face
+    # nothing) is as distorted as any: it weighs as the most distorted finite face (at least
+    # 1, an excess far above the bound, where every finite face is near isometric)
     finite = np.isfinite(energy)
     e = np.where(finite, energy, max(float(energy[finite].max()), 1.0) if finite.any() else 1.0)
     num = np.bincount(faces.ravel(), weights=np.repeat(e * area, 3), minlength=V)
