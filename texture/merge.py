@@ -104,12 +104,11 @@ def _strain(isl: Island) -> tuple[float, float]:
     return area, area * float(energy_excess(isl.xyz, isl.uv, isl.faces))
 
 
-def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list | None = None,
-           skipped: dict | None = None) -> list[tuple[int, int]]:
+def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list, skipped: dict) -> list[tuple[int, int]]:
     """This round's pairs: neighbours by shared border, longest first, each island in one pair
-    at most, none that failed before, none above ``cfg.merge_max_faces`` faces, and (with
-    ``strain``, :func:`_strain` of each island) none whose islands' mean energy excess is
-    above ``cfg.slit_target`` (those go into ``skipped``, by the islands' ids).
+    at most, none that failed before, none above ``cfg.merge_max_faces`` faces, and none whose
+    islands' mean energy excess (``strain``: :func:`_strain` of each island) is above
+    ``cfg.slit_target`` (those go into ``skipped``, by the islands' ids).
 
     The last rests on the union's map restricted to either island being a map of that
     island: with the same slit budget (``cfg.max_slits``) for the two together, a union seldom
@@ -123,9 +122,8 @@ def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list 
     busy: set[int] = set()
     out = []
     for p, q in sorted(shared, key=lambda pq: (-shared[pq], pq)):
-        strained = strain is not None and (
-            strain[p][1] + strain[q][1] > cfg.slit_target * (strain[p][0] + strain[q][0]))
-        if strained and skipped is not None:
+        strained = strain[p][1] + strain[q][1] > cfg.slit_target * (strain[p][0] + strain[q][0])
+        if strained:
             skipped[(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])
         if (p in busy or q in busy or (id(islands[p]), id(islands[q])) in failed
                 or islands[p].kept_start or islands[q].kept_start or strained
