@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import os
 import resource
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
 
 _shared: Any = None
@@ -91,7 +92,9 @@ def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None 
         else:
             out = []
             for f, job in zip(futures, jobs):
-                if f.done() and not f.cancelled():
+                # a killed pool marks its unfinished futures broken (from the executor's own
+                # thread, so sooner or later than this loop reads them): those jobs run here too
+                if f.done() and not f.cancelled() and not isinstance(f.exception(), BrokenProcessPool):
                     r, kb = f.result()  # a job's own error is raised here, as in a serial run
                     _peak_worker_kb = max(_peak_worker_kb, kb)
                     out.append(r)

@@ -69,6 +69,23 @@ def test_a_stalled_pool_is_killed_and_its_unfinished_jobs_run_here(monkeypatch):
     assert time.perf_counter() - t0 < 60
 
 
+def test_jobs_of_a_killed_pool_run_here_even_once_the_pool_marked_them_broken(monkeypatch):
+    # the executor's thread marks a killed pool's unfinished futures broken at its own pace;
+    # waiting for it here makes the slow-reader side of that race certain
+    from concurrent.futures import wait
+
+    pooled = parallel._pooled
+
+    def pooled_then_wait(*args):
+        futures = pooled(*args)
+        wait(futures, timeout=30)
+        return futures
+
+    monkeypatch.setattr(parallel, "STALL_SECONDS", 3.0)
+    monkeypatch.setattr(parallel, "_pooled", pooled_then_wait)
+    assert parallel_map(_hang_in_a_worker, [0, 1, 2, 3], workers=2, shared={"caller": os.getpid()}) == [0, 10, 20, 30]
+
+
 def test_parallel_map_one_worker_runs_here():
     assert parallel_map(_job, [1, 2], workers=1, shared={"factor": 1, "offset": [0, 5, 7]}) == [
         (6, os.getpid()), (9, os.getpid())]
