@@ -93,3 +93,36 @@ def test_no_halving_at_the_target_or_past_the_island_cap():
     comp = np.zeros(len(strip.faces) + len(small.faces), np.int64)
     capped = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=2))
     assert len(capped.islands) == 2 and capped.stats["halvings"] == []
+
+
+def _comb(teeth: int = 4, height: int = 8, cell: float = 0.25) -> Island:
+    """A comb: a 3-cell-high back with ``teeth`` 3-cell-wide teeth ``height`` cells long,
+    4 cells apart (a flat grid island with cells removed, UV = xy)."""
+    mask = np.zeros((height, teeth * 7 - 4), bool)
+    mask[:3] = True
+    for t in range(teeth):
+        mask[:, 7 * t:7 * t + 3] = True
+    g = _grid_island(mask.shape[1], mask.shape[0], cell)
+    faces = g.faces[np.tile(mask.ravel(), 2)]  # the grid's two triangles per cell, in two blocks
+    vid, inv = np.unique(faces, return_inverse=True)
+    faces = inv.reshape(-1, 3)
+    return Island(faces, g.uv[vid], g.xyz[vid], np.arange(len(faces)), np.arange(len(vid)), 0)
+
+
+def test_halvings_go_on_while_each_pays_until_the_target():
+    """A comb (with a small island of its part) needs three halvings, each gaining more than
+    ``pack_cut_gain``, to pack 0.6: at most two leave it below the target; by default it gets
+    the third and reaches it."""
+    comb = _comb()
+    _, small = _pair()
+    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
+                   np.arange(len(small.uv)) + len(comb.uv), 1)
+    comp = np.zeros(len(comb.faces) + len(small.faces), np.int64)
+    two = choose_layout([comb, small], comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=2))
+    got = choose_layout([comb, small], comp, UnwrapConfig(resolution=512, padding=4))
+    assert len(two.stats["halvings"]) == 2 and two.packing.utilization < 0.6
+    steps = [got.stats["utilization_uncut"]] + [h["utilization"] for h in got.stats["halvings"]]
+    assert len(steps) == 4 and (np.diff(steps) >= 0.02).all() and got.packing.utilization >= 0.6
+    assert len(got.islands) == 5
+    uv, faces, island = island_arrays(got.islands)
+    assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
