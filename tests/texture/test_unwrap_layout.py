@@ -124,5 +124,5 @@ def test_halvings_go_on_while_each_pays_until_the_target():
     steps = [got.stats["utilization_uncut"]] + [h["utilization"] for h in got.stats["halvings"]]
     assert len(steps) == 4 and (np.diff(steps) >= 0.02).all() and got.packing.utilization >= 0.6
     assert len(got.islands) == 5
-    uv, faces, island = island_arrays(got.islands)
+    _, faces, island = island_arrays(got.islands)
     assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
