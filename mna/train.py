@@ -33,7 +33,14 @@ from mna import datasets, train_config
 from mna.checkpoint import read_state, write_state
 from mna.conditional import CHECKPOINT_FORMAT, ConditionalAtlas, load_state
 from mna.config import save_yaml
-from mna.distributed import Distributed, ResumableSampler, rank_param_divergence, setup_distributed
+from mna.distributed import (
+    Distributed,
+    ResumableSampler,
+    end_rank,
+    rank_param_divergence,
+    setup_distributed,
+    teardown_distributed,
+)
 from mna.interrupt import exit_code, graceful_stop
 from mna.model import flush_denormals
 from mna.objective import LossTerms, atlas_losses
@@ -208,6 +215,10 @@ class Logger:
         if self.writer is not None:
             self.writer.flush()
 
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
 
 def _save(trainer: Trainer, out: Path, logger: Logger) -> None:
     if trainer.ctx.main:
@@ -254,6 +265,7 @@ def train(cfg: TrainConfig, resume: bool = False, progress: bool = True, stop_at
             f"{ctx.world} process(es) on {ctx.device}, batch {cfg.batch_size}, {cfg.epochs} epochs, "
             f"preset {cfg.preset}, encoder weights {trainer.model.encoder.weights}, logging {logger.backend}")
     interrupted = _loop(trainer, out, logger, val_set, progress, stop_at_step)
+    logger.close()
     metrics = None
     if not interrupted:
         metrics = _finish(trainer, out, val_set)
@@ -398,9 +410,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return run_command("mna train", run, args)
     finally:
-        if dist.is_initialized():
-            dist.destroy_process_group()
+        teardown_distributed()
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1:
+        end_rank(code)  # a rank of torchrun: see end_rank for why it skips finalization
+    sys.exit(code)

@@ -74,14 +74,14 @@ def _ddp_worker(rank: int, world: int, port: int, cfg_dict: dict, dump: str) -> 
     os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE=str(world),
                       LOCAL_RANK=str(rank))
     torch.set_num_threads(1)
-    import torch.distributed as dist
+    from mna.distributed import end_rank, teardown_distributed
 
     try:
         result = train(train_config.from_dict(cfg_dict), progress=False, log=lambda s: None)
         torch.save({"params": _params(result.model), "metrics": result.metrics}, f"{dump}/rank{rank}.pt")
     finally:
-        if dist.is_initialized():
-            dist.destroy_process_group()
+        teardown_distributed()
+    end_rank(0)  # as `python -m mna.train` ends a rank under torchrun
 
 
 def test_two_cpu_processes_gloo_end_identical(meshes_root, tmp_path, free_port):
@@ -113,3 +113,14 @@ def test_torchrun_two_processes(meshes_root, tmp_path, free_port):
     metrics = json.loads((tmp_path / "tr" / "metrics.json").read_text())
     assert metrics["world_size"] == 2 and metrics["rank_max_param_diff"] == 0.0 and metrics["steps"] == 2
     assert proc.stdout.count("done:") == 1  # rank 0 alone reports
+
+
+def test_end_rank_keeps_the_exit_code_and_buffered_output():
+    # a rank ends with os._exit (no finalization); what it printed to the pipes must still arrive
+    code = "from mna.distributed import end_rank; print('out', end=''); import sys; print('err', end='', " \
+           "file=sys.stderr); end_rank(3)"
+    from train_helpers import subprocess_env
+
+    env = {k: v for k, v in subprocess_env().items() if k != "PYTHONUNBUFFERED"}  # block-buffered pipes
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert (proc.returncode, proc.stdout, proc.stderr) == (3, "out", "err")
