@@ -403,18 +403,23 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
+def run_as_rank(prog: str, args: argparse.Namespace) -> int:
+    """:func:`run` with the exit codes of :mod:`mna.cli`, then leave the process group; a rank
+    of torchrun (WORLD_SIZE > 1) then ends at once (:func:`mna.distributed.end_rank` says why)."""
     from mna.cli import run_command
 
-    args = parser().parse_args(argv)
     try:
-        return run_command("mna train", run, args)
+        code = run_command(prog, run, args)
     finally:
         teardown_distributed()
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1:
+        end_rank(code)
+    return code
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_as_rank("mna train", parser().parse_args(argv))
 
 
 if __name__ == "__main__":
-    code = main()
-    if int(os.environ.get("WORLD_SIZE", "1")) > 1:
-        end_rank(code)  # a rank of torchrun: see end_rank for why it skips finalization
-    sys.exit(code)
+    sys.exit(main())

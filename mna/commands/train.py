@@ -46,9 +46,9 @@ def register(subparsers) -> None:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from mna.train import run
+    from mna.train import run_as_rank
 
-    return run(args)
+    return run_as_rank("mna train", args)
 
 
 def run_reconstruct(args: argparse.Namespace) -> int:

@@ -100,14 +100,15 @@ def test_two_cpu_processes_gloo_end_identical(meshes_root, tmp_path, free_port):
     assert state["per_rank_batch"] == 2 and state["step"] == 4  # 4 items, effective batch 4: 1 step per epoch
 
 
-def test_torchrun_two_processes(meshes_root, tmp_path, free_port):
+@pytest.mark.parametrize("entry", [["mna.train"], ["mna.cli", "train"]], ids=["module", "cli"])
+def test_torchrun_two_processes(meshes_root, tmp_path, free_port, entry):
     from train_helpers import subprocess_env
 
     cfg = _cfg(meshes_root, tmp_path / "tr", epochs=2)
     path = tmp_path / "c.yaml"
     train_config.fit_config_mod.save_yaml(path, train_config.to_dict(cfg))
     cmd = [sys.executable, "-m", "torch.distributed.run", "--nnodes=1", "--nproc_per_node=2",
-           "--master_addr=127.0.0.1", f"--master_port={free_port}", "-m", "mna.train", str(path), "--no-progress"]
+           "--master_addr=127.0.0.1", f"--master_port={free_port}", "-m", *entry, str(path), "--no-progress"]
     proc = subprocess.run(cmd, env=subprocess_env(), capture_output=True, text=True, timeout=240)
     assert proc.returncode == 0, proc.stderr[-2000:]
     metrics = json.loads((tmp_path / "tr" / "metrics.json").read_text())
