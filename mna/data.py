@@ -116,7 +116,9 @@ def make_surface(points: np.ndarray, faces: np.ndarray | None, path: str = "<mem
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise InputError(f"expected points of shape (P, 3), got {points.shape} in {path}")
-    if len(points) < MIN_POINTS:
+    # a mesh is sampled on its surface (any positive area will do: a cube has 8 vertices); a
+    # cloud is all there is of the shape
+    if faces is None and len(points) < MIN_POINTS:
         raise InputError(f"input has {len(points)} points; at least {MIN_POINTS} are needed: {path}")
     norm = Normalization.fit(points, f"input {path}")
     unit = norm.apply(points)

@@ -104,7 +104,27 @@ def glb_bytes(mesh: UVMesh, image: np.ndarray, shade: Shading | None = None, dou
         metallicFactor=0.0, roughnessFactor=ROUGHNESS, doubleSided=bool(double_sided))
     tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv[shade.source], material=material)
     tm.vertex_normals = shade.normals
-    return trimesh.exchange.gltf.export_glb(trimesh.Scene(tm), include_normals=True)
+    return trimesh.exchange.gltf.export_glb(trimesh.Scene(tm), include_normals=True, buffer_postprocessor=_own_views)
+
+
+def _own_views(buffer_items, tree: dict) -> None:
+    """Give every accessor its own bufferView (trimesh's ``buffer_postprocessor`` hook).
+
+    trimesh stores equal bytes once, so accessors with equal data share a view: on a mesh
+    whose vertices lie on the unit sphere the normals can equal the positions to the bit (an
+    icosahedron's do), and a view shared by two vertex attributes needs a ``byteStride``
+    the validator reports as missing (MESH_PRIMITIVE_ACCESSOR_WITHOUT_BYTESTRIDE, an error).
+    """
+    seen: set[int] = set()
+    for blob in tree["accessors"].values():
+        view = blob.get("bufferView")
+        if view is None:
+            continue
+        if view in seen:
+            key = ("own view", len(buffer_items))
+            buffer_items[key] = list(buffer_items.values())[view]
+            blob["bufferView"] = buffer_items.index(key)
+        seen.add(blob["bufferView"])
 
 
 def export_textured(folder: str | os.PathLike, mesh: UVMesh, image: np.ndarray, stem: str = "mesh") -> dict:

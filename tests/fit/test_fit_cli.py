@@ -131,3 +131,25 @@ def test_config_float_written_without_dot(tmp_path):
     assert cfg.lr == 0.001 and cfg.loss.w_orient == 0.002
     with pytest.raises(C.MnaError, match="config.lr must be float"):
         C.from_dict({"lr": "fast"})
+
+
+def test_a_low_poly_mesh_is_sampled_on_its_faces(tmp_path):
+    # 8 vertices are too few for a cloud, not for a mesh: its faces are the shape
+    import trimesh
+
+    from mna.data import MIN_POINTS, load_surface
+    from mnacore.errors import InputError
+
+    box = trimesh.creation.box(extents=[2.0, 4.0, 6.0])
+    assert len(box.vertices) < MIN_POINTS
+    box.export(tmp_path / "box.obj")
+    s = load_surface(tmp_path / "box.obj")
+    corner = np.abs(s.normalization.apply(np.array([[1.0, 2.0, 3.0]]))[0])
+    np.testing.assert_allclose(corner, np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0), rtol=1e-12)  # unit-ball frame
+    p = s.sample(2000, np.random.default_rng(0))
+    # every sample lies on a face: on the box, with one coordinate at its half-extent
+    assert np.all(np.abs(p) <= corner + 1e-12)
+    assert np.all(np.min(np.abs(np.abs(p) - corner), axis=1) < 1e-12)
+    np.save(tmp_path / "box_points.npy", box.vertices)
+    with pytest.raises(InputError, match="at least"):
+        load_surface(tmp_path / "box_points.npy")

@@ -115,6 +115,22 @@ def test_glb_passes_the_khronos_validator(sphere_export):
     assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
 
 
+def test_glb_accessors_with_equal_data_keep_their_own_views(tmp_path):
+    # an icosahedron's vertices lie on the unit sphere and its normals equal them to the bit;
+    # a view shared by POSITION and NORMAL would need a byteStride (a validator error)
+    ico = trimesh.creation.icosahedron()
+    paths = export_textured(tmp_path, _xatlas(ico), checker_image(8.0, 256))
+    np.testing.assert_array_equal(glb_attribute(paths["glb"], "NORMAL"), glb_attribute(paths["glb"], "POSITION"))
+    accessors = glb_json(paths["glb"])["accessors"]
+    views = [a["bufferView"] for a in accessors]
+    assert len(set(views)) == len(views) == 4  # positions, normals, UVs, indices
+    reason = gltf_validator.available()
+    if reason:
+        pytest.skip(reason)
+    report = gltf_validator.validate(paths["glb"])
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+
+
 def _two_islands(mirror_second: bool):
     """Two unit squares side by side in 3D (z up, wound counter-clockwise from +z), separate in UV."""
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0.0]])

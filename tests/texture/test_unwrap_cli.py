@@ -171,3 +171,17 @@ def test_unwrap_with_run_follows_the_run_folder_rule(tmp_path, capsys):
     fit_files = sorted(p.name for p in run.iterdir())
     assert main(["unwrap", mesh, "-o", str(run), "--run", str(run), "--no-progress", *SMALL]) == 0
     assert set(fit_files) <= {p.name for p in run.iterdir()} and (run / "unwrap.json").is_file()
+
+
+def test_unwrap_a_low_poly_box(tmp_path):
+    # 8 vertices and 12 faces, a game asset's block-out: the fit samples its faces
+    box = trimesh.creation.box(extents=[1.0, 2.0, 3.0])
+    box.export(tmp_path / "box.obj")
+    out = tmp_path / "out"
+    assert main(["unwrap", str(tmp_path / "box.obj"), "-o", str(out), "--steps", "60", "--no-progress", *SMALL]) == 0
+    back = read_back(out / "mesh.glb")
+    assert back.faces.shape == (12, 3)
+    np.testing.assert_allclose(back.vertices[back.faces], box.vertices[box.faces], atol=1e-6)
+    m = json.loads((out / "unwrap.json").read_text())["uv_metrics"]
+    assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    assert m["distortion_metric"] < 0.15  # flat faces: each island folds out flat
