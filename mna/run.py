@@ -30,7 +30,7 @@ from mna.runfolder import prepare_run_folder, remove_derived
 from mnacore.atomic import atomic_path, write_json
 from mnacore.charts import save_charts
 from mnacore.errors import MnaError
-from mnacore.frame import Normalization
+from mnacore.frame import Normalization, far_from_origin
 from mnacore.topology import mesh_topology
 
 CONFIG = "config.yaml"
@@ -280,9 +280,11 @@ def _write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray | None, dtype
 def _coordinate_dtype(norm: Normalization) -> type:
     """float32 for input-frame coordinates unless the input's scale is outside what float32
     keeps to full precision (normal numbers 1.2e-38 .. 3.4e38): a 1e-40 or 1e200 shape is
-    written as float64 instead of subnormals or inf."""
+    written as float64 instead of subnormals or inf; so is a shape far from the origin for its
+    size (:func:`mnacore.frame.far_from_origin`: a scan in map coordinates)."""
     extent = float(np.abs(norm.center).max()) + norm.scale
-    return np.float32 if 1e-30 <= norm.scale and extent <= 1e37 else np.float64
+    far = far_from_origin(extent, 2 * norm.scale)
+    return np.float32 if 1e-30 <= norm.scale and extent <= 1e37 and not far else np.float64
 
 
 def _write_charts(run: Path, g, norm: Normalization, tau: float) -> None:

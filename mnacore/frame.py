@@ -18,6 +18,17 @@ from .errors import InputError
 #: to spare). Relative, so a shape at 1e-30 or at 1e200 units normalises like one at 1.
 REL_MIN_EXTENT = 1e-12
 
+#: a shape whose coordinates exceed this many times its size is "far from the origin":
+#: float32 keeps 24 bits of a coordinate, so there the offset, not the shape, sets the
+#: precision (a unit sphere at UTM coordinates, 5e6, moved by up to 0.24). Such shapes are
+#: stored relative to their centre (exports) or in float64 (run folders).
+FAR_FROM_ORIGIN = 16.0
+
+
+def far_from_origin(coordinate: float, size: float) -> bool:
+    """``coordinate`` (the largest |coordinate|) is beyond ``FAR_FROM_ORIGIN`` x ``size`` (extent)."""
+    return coordinate > FAR_FROM_ORIGIN * size
+
 
 #: the first bytes of binary or self-describing formats: a file renamed to the wrong
 #: extension (a text file called .ply) is named as such instead of failing deep in a parser

@@ -4,7 +4,9 @@ What every export carries, so it opens right in Blender and glTF viewers:
 
 - positions and UVs rounded to float32 once, so the OBJ (written with 9 significant
   digits, which round-trip float32 exactly, at any scale) and the GLB (float32) hold the
-  same numbers and measure identically;
+  same numbers and measure identically; a mesh far from the origin for its size (a scan in
+  map coordinates) is rounded relative to its centre instead (:func:`asset_origin`), which
+  the GLB stores as its node's translation and the OBJ adds back (17 digits, exact);
 - smooth shading normals (:mod:`texture.normals`): seam copies share a normal, vertices
   are split only where a crease runs through them;
 - a PBR material: base colour = the texture, ``metallicFactor`` 0 (glTF's default is 1, a
@@ -29,6 +31,7 @@ import numpy as np
 
 from mnacore.atomic import atomic_path
 from mnacore.errors import InputError
+from mnacore.frame import far_from_origin
 from mnacore.uvmesh import UVMesh, weld_ids
 
 from .normals import Shading, open_surface, shading_normals
@@ -38,17 +41,31 @@ MATERIAL = "material_0"
 ROUGHNESS = 0.8
 
 
-def asset_mesh(mesh: UVMesh) -> UVMesh:
-    """``mesh`` with positions and UVs rounded to what the GLB stores (float32, v flipped).
+def asset_origin(vertices: np.ndarray) -> np.ndarray:
+    """(3,) point the exported float32 positions are measured from: the origin, or the
+    bounding-box centre where the mesh is far from the origin for its size
+    (:func:`mnacore.frame.far_from_origin`)."""
+    lo, hi = vertices.min(0), vertices.max(0)
+    if not far_from_origin(float(np.abs(vertices).max()), float(np.max(hi - lo))):
+        return np.zeros(3)
+    return lo / 2 + hi / 2
+
+
+def asset_mesh(mesh: UVMesh, origin: np.ndarray | None = None) -> UVMesh:
+    """``mesh`` with positions and UVs rounded to what the GLB stores (float32 positions
+    relative to ``origin``, default 0; float32 UVs, v flipped).
 
     Raises ``InputError`` when a coordinate exceeds float32's range (about 3.4e38).
     """
+    origin = np.zeros(3) if origin is None else origin
+    local = mesh.vertices - origin
     limit = float(np.finfo(np.float32).max)
-    if np.abs(mesh.vertices).max() > limit or np.abs(mesh.uv).max() > limit:
+    if np.abs(local).max() > limit or np.abs(mesh.uv).max() > limit:
         raise InputError("coordinates exceed the float32 range glTF stores (about 3.4e38): scale the mesh down")
     # UVs on multiples of 2^-24: then v and glTF's 1 - v are both exact in float32 (in [0, 1])
     uv = (np.round(mesh.uv * 2.0 ** 24) / 2.0 ** 24).astype(np.float32).astype(np.float64)
-    return UVMesh(mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces, uv)
+    # origin + a float32 is exact in float64 unless the extent is below 2^-29 of the offset
+    return UVMesh(origin + local.astype(np.float32).astype(np.float64), mesh.faces, uv)
 
 
 def shading(mesh: UVMesh, weld: np.ndarray | None = None) -> Shading:
@@ -66,8 +83,11 @@ def _fmt_rows(prefix: str, rows: np.ndarray, fmt: str = "%.9g") -> str:
     return buf.getvalue()
 
 
-def obj_text(mesh: UVMesh, mtl_name: str, shade: Shading | None = None) -> str:
+def obj_text(mesh: UVMesh, mtl_name: str, shade: Shading | None = None, exact: bool = False) -> str:
     """OBJ text: ``mtllib``/``usemtl``, ``v``, ``vt``, ``vn`` (9 significant digits), ``f v/vt/vn``.
+
+    ``exact``: positions with 17 digits (float64 round-trip), for a mesh rounded relative
+    to an origin (:func:`asset_mesh`): its coordinates are float64 sums, not float32s.
 
     Positions and UVs are indexed by ``mesh``'s vertices (seam copies stay separate ``v``
     lines, so every face keeps its own corners); normals by the shading's output vertices.
@@ -79,7 +99,7 @@ def obj_text(mesh: UVMesh, mtl_name: str, shade: Shading | None = None) -> str:
     face_lines = _fmt_rows("f", corners, "%d/%d/%d %d/%d/%d %d/%d/%d")
     return (f"# mna export: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces\n"
             f"mtllib {mtl_name}\nusemtl {MATERIAL}\n"
-            + _fmt_rows("v", mesh.vertices) + _fmt_rows("vt", mesh.uv)
+            + _fmt_rows("v", mesh.vertices, "%.17g" if exact else "%.9g") + _fmt_rows("vt", mesh.uv)
             + _fmt_rows("vn", shade.normals.astype(np.float32)) + face_lines)
 
 
@@ -89,22 +109,27 @@ def mtl_text(texture_name: str) -> str:
             f"Pr {ROUGHNESS}\nPm 0.0\nmap_Kd {texture_name}\n")
 
 
-def glb_bytes(mesh: UVMesh, image: np.ndarray, shade: Shading | None = None, double_sided: bool | None = None) -> bytes:
-    """glTF binary: the mesh on the shading's vertices, normals, PBR material with the texture as PNG."""
+def glb_bytes(mesh: UVMesh, image: np.ndarray, shade: Shading | None = None, double_sided: bool | None = None,
+              origin: np.ndarray | None = None) -> bytes:
+    """glTF binary: the mesh on the shading's vertices, normals, PBR material with the texture as PNG.
+    ``origin``: the node's translation, positions stored relative to it (:func:`asset_origin`)."""
     import PIL.Image
     import trimesh
 
     shade = shade or shading(mesh)
     if double_sided is None:
         double_sided = open_surface(mesh.faces, weld_ids(mesh.vertices))
-    tm = trimesh.Trimesh(mesh.vertices[shade.source], shade.faces, process=False, validate=False)
+    origin = np.zeros(3) if origin is None else origin
+    tm = trimesh.Trimesh((mesh.vertices - origin)[shade.source], shade.faces, process=False, validate=False)
     pil = PIL.Image.fromarray(np.round(np.clip(image[..., :3], 0, 1) * 255).astype(np.uint8))
     material = trimesh.visual.material.PBRMaterial(
         name=MATERIAL, baseColorTexture=pil, baseColorFactor=[255, 255, 255, 255],
         metallicFactor=0.0, roughnessFactor=ROUGHNESS, doubleSided=bool(double_sided))
     tm.visual = trimesh.visual.TextureVisuals(uv=mesh.uv[shade.source], material=material)
     tm.vertex_normals = shade.normals
-    return trimesh.exchange.gltf.export_glb(trimesh.Scene(tm), include_normals=True, buffer_postprocessor=_own_views)
+    scene = trimesh.Scene()
+    scene.add_geometry(tm, transform=trimesh.transformations.translation_matrix(origin) if origin.any() else None)
+    return trimesh.exchange.gltf.export_glb(scene, include_normals=True, buffer_postprocessor=_own_views)
 
 
 def _own_views(buffer_items, tree: dict) -> None:
@@ -139,11 +164,12 @@ def export_textured(folder: str | os.PathLike, mesh: UVMesh, image: np.ndarray, 
     folder.mkdir(parents=True, exist_ok=True)
     paths = {"obj": folder / f"{stem}.obj", "mtl": folder / f"{stem}.mtl",
              "texture": folder / f"{stem}_texture.png", "glb": folder / f"{stem}.glb"}
-    mesh = asset_mesh(mesh)
+    origin = asset_origin(mesh.vertices)
+    mesh = asset_mesh(mesh, origin)
     weld = weld_ids(mesh.vertices)  # once, for the normals and for the open-surface test
     shade = shading(mesh, weld)
-    obj = obj_text(mesh, paths["mtl"].name, shade)
-    glb = glb_bytes(mesh, image, shade, open_surface(mesh.faces, weld))
+    obj = obj_text(mesh, paths["mtl"].name, shade, exact=bool(origin.any()))
+    glb = glb_bytes(mesh, image, shade, open_surface(mesh.faces, weld), origin)
     with contextlib.ExitStack() as stack:
         tmp = {k: stack.enter_context(atomic_path(p)) for k, p in paths.items() if k != "texture"}
         tmp["obj"].write_text(obj)

@@ -208,6 +208,19 @@ def test_tiny_and_huge_meshes_fit(tmp_path, scale):
     assert np.isfinite(pts).all() and 0.01 * scale < np.abs(pts).max() < 3 * scale
 
 
+def test_a_mesh_in_map_coordinates_keeps_its_shape_in_the_run(tmp_path):
+    # a 1.4-unit torus at UTM-like coordinates: float32 steps by 0.5 at 5.3e6
+    mesh = shapes.torus(sections=24, ring=12)
+    offset = np.array([412345.678, 5312345.432, 250.0])
+    src = _write_obj(tmp_path / "t.obj", mesh.vertices + offset, mesh.faces)
+    fit_run(str(src), tmp_path / "run", _tiny(3), progress_bar=False, log=lambda s: None)
+    z = np.load(tmp_path / "run" / "charts.npz")
+    v = z["vertices"] - offset  # the input's frame, to the torus's own precision
+    assert z["vertices"].dtype == np.float64
+    # the charts' points sit on the grid: distinct in the shape's frame, not snapped to 0.5 steps
+    assert np.abs(v).max() < 3 and len(np.unique(np.round(v[:, 0], 6))) > len(v) // 4
+
+
 def test_export_reference_points_of_a_huge_mesh():
     """`mna export` samples the input surface: in a 1e200 mesh's own units its areas overflow."""
     import trimesh

@@ -131,6 +131,40 @@ def test_glb_accessors_with_equal_data_keep_their_own_views(tmp_path):
     assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
 
 
+def test_a_mesh_in_map_coordinates_keeps_its_shape(tmp_path, icosphere):
+    # a unit sphere at UTM-like coordinates: float32 there steps by 0.5 (at 5.3e6), so the
+    # positions are stored relative to the centre and the centre as the node's translation
+    offset = np.array([412345.678, 5312345.432, 250.0])
+    far = _xatlas(icosphere)
+    far = make_uv_mesh(far.vertices + offset, far.faces, far.uv)
+    paths = export_textured(tmp_path, far, checker_image(8.0, 256))
+    for kind in ("glb", "obj"):
+        back = read_back(paths[kind])
+        assert back.faces.shape == far.faces.shape
+        err = np.abs(back.vertices[back.faces] - far.vertices[far.faces]).max()
+        assert err < 1e-6, (kind, err)  # float32 of a unit-size shape: ~6e-8; at the offset: 0.25
+    glb, obj = read_back(paths["glb"]), read_back(paths["obj"])
+    np.testing.assert_array_equal(glb.vertices[glb.faces], obj.vertices[obj.faces])
+    (node,) = [n for n in glb_json(paths["glb"])["nodes"] if "mesh" in n]
+    np.testing.assert_allclose(np.reshape(node["matrix"], (4, 4))[3, :3], far.vertices.min(0) / 2 + far.vertices.max(0) / 2)
+    assert np.abs(glb_attribute(paths["glb"], "POSITION")).max() <= 1.0 + 1e-6
+    reason = gltf_validator.available()
+    if reason:
+        pytest.skip(reason)
+    report = gltf_validator.validate(paths["glb"])
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+
+
+def test_asset_origin_only_for_a_mesh_far_from_the_origin_for_its_size():
+    from mnacore.frame import FAR_FROM_ORIGIN as FAR
+    from texture.export import asset_origin
+
+    box = trimesh.creation.box(extents=[2.0, 1.0, 1.0]).vertices  # extent 2
+    np.testing.assert_array_equal(asset_origin(box + [FAR * 2 - 1, 0, 0]), np.zeros(3))  # |v| up to 2 FAR: kept
+    np.testing.assert_allclose(asset_origin(box + [FAR * 2, 5, 0]), [FAR * 2, 5, 0])  # beyond: its centre
+    np.testing.assert_array_equal(asset_origin(box * 1e-6), np.zeros(3))  # small but centred: kept
+
+
 def _two_islands(mirror_second: bool):
     """Two unit squares side by side in 3D (z up, wound counter-clockwise from +z), separate in UV."""
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0.0]])
