@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from mnacore.atomic import atomic_path, write_json
+from mnacore.frame import far_from_origin
 from render import heatmap as H
 from render.backend import VariantChoice, choose_variant, import_mitsuba
 from render.images import read_image, to_display, write_exr, write_png
@@ -111,6 +112,22 @@ def framing_for(mesh: UVMesh, preset: Preset) -> Framing:
     _, up, _ = world_frame(preset.up, preset.front)
     return Framing(sphere, float((mesh.vertices @ up).min()),
                    2.0 * sphere.radius / preset.material.checker_squares)
+
+
+def near_origin(mesh: UVMesh, framing: Framing, preset: Preset) -> tuple[UVMesh, Framing]:
+    """``mesh`` and ``framing`` moved so that the framing's centre is the origin, where the
+    framing is far from the origin for its size (:func:`mnacore.frame.far_from_origin`).
+
+    Mitsuba and OpenGL hold positions in float32. At map coordinates (5e6) float32 steps by
+    0.5, and a unit sphere rendered as stepped slabs. A translation of mesh, cameras, lights
+    and ground together leaves every image the same. Elsewhere the mesh is kept as it is.
+    """
+    c, r = framing.sphere.center, framing.sphere.radius
+    if not far_from_origin(float(np.abs(c).max()) + r, 2 * r):
+        return mesh, framing
+    _, up, _ = world_frame(preset.up, preset.front)
+    return (dataclasses.replace(mesh, vertices=mesh.vertices - c),
+            Framing(BoundingSphere(np.zeros(3), r), framing.lowest - float(c @ up), framing.square_size))
 
 
 @dataclass
@@ -203,6 +220,8 @@ def render_mesh(mesh: UVMesh | str | Path, out_dir: str | Path, opts: RenderOpti
     mesh = load_uv_mesh(mesh) if not isinstance(mesh, UVMesh) else mesh
     check_mesh(mesh, opts)
     framing = framing or framing_for(mesh, preset)
+    recorded = framing  # render.json says where the mesh is, not where it was rendered
+    mesh, framing = near_origin(mesh, framing, preset)
     views = list(opts.views) if opts.views else [v for v in DEFAULT_VIEWS if v in preset.views] or None
     cameras = camera_rig(framing.sphere, preset, opts.res, opts.res,
                          None if opts.turntable else views, opts.turntable)
@@ -241,7 +260,7 @@ def render_mesh(mesh: UVMesh | str | Path, out_dir: str | Path, opts: RenderOpti
             result.images[key], result.scenes[key] = out_dir / f"{key}.png", xml
     if opts.preview:
         _previews(mesh, cameras, opts, preset, framing, scene_dir, result)
-    write_json(out_dir / "render.json", render_record(result, opts, preset, framing))
+    write_json(out_dir / "render.json", render_record(result, opts, preset, recorded))
     return result
 
 

@@ -164,3 +164,15 @@ def test_render_dict_rejects_nothing_silently(fast_variant, torus, tmp_path):
     scene = scene_dict("missing.ply", material_plain((1, 1, 1)), cam, bounding_sphere(torus.vertices), -1.0, p, 1)
     with pytest.raises(Exception):
         render_dict(scene, tmp_path, fast_variant)
+
+
+def test_a_mesh_in_map_coordinates_renders_as_at_the_origin(variant, torus, tmp_path):
+    """Mitsuba holds positions in float32, which steps by 0.5 at 5.3e6: the torus (radius about
+    1.5) is moved to the origin for rendering, so it renders as the same torus placed there."""
+    opts = RenderOptions(views=("front",), spp=64, res=48, preset="plain", texture="checker", progress=False,
+                         variant=variant)
+    offset = np.array([412345.678, 5312345.432, 250.0])
+    far = dataclasses.replace(torus, vertices=torus.vertices + offset)
+    a = read_image(render_mesh(torus, tmp_path / "near", opts).images["front"].with_suffix(".exr"))
+    b = read_image(render_mesh(far, tmp_path / "far", opts).images["front"].with_suffix(".exr"))
+    _same_render(a, b, "front", exact=False)
