@@ -14,7 +14,7 @@ import numpy as np
 import trimesh
 
 from mnacore.errors import InputError
-from mnacore.frame import Normalization, check_file_format
+from mnacore.frame import Normalization, check_file_format, read_failure
 
 MESH_EXTS = {".obj", ".ply", ".off", ".stl", ".glb", ".gltf"}
 POINT_EXTS = {".xyz", ".npy", ".npz", ".txt"}
@@ -141,8 +141,7 @@ def _read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         if isinstance(loaded, trimesh.Scene):
             loaded = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded.dump(concatenate=True)
     except Exception as exc:  # trimesh raises many types on bad files
-        detail = str(exc).splitlines()[0] if str(exc) else ""
-        raise InputError(f"cannot read {path.name}: {type(exc).__name__}: {detail}") from None
+        raise InputError(read_failure(path, exc)) from None
     if isinstance(loaded, trimesh.PointCloud):
         if path.suffix.lower() == ".ply":
             return np.asarray(loaded.vertices), None  # a PLY without faces is a point cloud

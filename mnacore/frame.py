@@ -6,6 +6,7 @@ a shape at 1e-30 or 1e200 units normalises like one at 1.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,8 +36,27 @@ def far_from_origin(coordinate: float, size: float) -> bool:
 MAGIC = {".ply": b"ply", ".glb": b"glTF", ".npy": b"\x93NUMPY", ".npz": b"PK"}
 
 
+def read_failure(path: Path, exc: BaseException) -> str:
+    """One line for a reader's exception on ``path``: trimesh names only the file a glTF or
+    OBJ refers to and cannot find (``gltf_buffer_0.bin``), so say that it is missing."""
+    detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    if isinstance(exc, FileNotFoundError):
+        return f"cannot read {path.name}: a file it refers to is missing: {detail}"
+    return f"cannot read {path.name}: {detail}"
+
+
 def check_file_format(path: Path) -> None:
-    """Raise ``InputError`` when ``path``'s first bytes do not match its extension (see ``MAGIC``)."""
+    """Raise ``InputError`` when ``path``'s first bytes do not match its extension (see
+    ``MAGIC``), or a ``.gltf`` is not JSON with an ``asset`` (trimesh reports a broken one as
+    a missing ``model.gltf``)."""
+    if path.suffix.lower() == ".gltf":
+        try:
+            tree = json.loads(path.read_bytes())
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise InputError(f"cannot read {path.name}: not glTF JSON ({str(exc).splitlines()[0]})") from None
+        if not isinstance(tree, dict) or "asset" not in tree:
+            raise InputError(f"cannot read {path.name}: not glTF (no \"asset\" in its JSON)")
+        return
     magic = MAGIC.get(path.suffix.lower())
     if magic is None:
         return

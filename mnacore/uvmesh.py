@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .frame import Normalization, check_coordinates, check_file_format
+from .frame import Normalization, check_coordinates, check_file_format, read_failure
 
 #: relative tolerance (of the bounding-box diagonal) below which two positions are one point.
 WELD_TOL = 1e-9
@@ -128,8 +128,7 @@ def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
     try:
         mesh = trimesh.load(path, force="mesh", process=False, **kw)
     except Exception as exc:  # trimesh raises many types on unreadable files
-        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"cannot read mesh {path.name}: {detail}") from None
+        raise InputError(read_failure(path, exc)) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise InputError(f"{path} holds no triangle faces")
     check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)

@@ -273,6 +273,24 @@ def test_text_file_named_ply(capsys, tmp_path):
     assert not (tmp_path / "run").exists()
 
 
+def test_broken_gltf_and_its_missing_buffer(capsys, tmp_path):
+    import trimesh
+
+    # trimesh reports both as a FileNotFoundError naming another file ("model.gltf")
+    (tmp_path / "cut.gltf").write_text('{"asset":')
+    (tmp_path / "list.gltf").write_text("[1, 2]")
+    files = trimesh.Scene(shapes.torus(sections=24, ring=12)).export(file_type="gltf")
+    (tmp_path / "model.gltf").write_bytes(files["model.gltf"])  # without its .bin buffers
+    for cmd in (["fit"], ["unwrap"]):
+        out = tmp_path / "run"
+        _fails(capsys, [*cmd, str(tmp_path / "cut.gltf"), "-o", str(out)], "cannot read cut.gltf: not glTF JSON")
+        _fails(capsys, [*cmd, str(tmp_path / "list.gltf"), "-o", str(out)], 'cannot read list.gltf: not glTF (no "asset"')
+        missing = next(k for k in files if k.endswith(".bin"))
+        _fails(capsys, [*cmd, str(tmp_path / "model.gltf"), "-o", str(out)],
+               f"cannot read model.gltf: a file it refers to is missing: {missing}")
+        assert not out.exists()
+
+
 def test_negative_seed_names_the_option(capsys, sphere_file, tmp_path):
     out = tmp_path / "run"
     _fails(capsys, ["fit", sphere_file, "-o", str(out), "--seed", "-5"], "--seed must be between 0 and")
