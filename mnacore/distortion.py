@@ -109,10 +109,16 @@ class Distortions(NamedTuple):
     area: float
 
 
+def _at_least_zero(x: float) -> float:
+    # each distortion is >= 0 exactly (Cauchy-Schwarz, AM-GM); on an isometry rounding leaves
+    # about -4e-16 (a third of rotated isometries), which reports read as "-0.000"
+    return 0.0 if x < 0 else x  # NaN stays NaN
+
+
 def all_distortions(g: MetricTensor, weights=None, eps: float = SSDE_EPS) -> Distortions:
     """The three DESIGN distortions as floats (weights: e.g. UV or 3D area per sample)."""
     return Distortions(
-        float(distortion_metric(g, eps, weights)),
-        float(distortion_conformal(g, weights)),
-        float(distortion_area(g, weights)),
+        _at_least_zero(float(distortion_metric(g, eps, weights))),
+        _at_least_zero(float(distortion_conformal(g, weights))),
+        _at_least_zero(float(distortion_area(g, weights))),
     )
