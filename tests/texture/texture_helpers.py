@@ -94,6 +94,17 @@ def icosphere() -> trimesh.Trimesh:
     return shapes.sphere(radius=1.0, subdivisions=3)
 
 
+def assert_glb_validates(path) -> None:
+    """The Khronos glTF validator reports no errors and no warnings (skips where it is absent)."""
+    from texture import gltf_validator
+
+    reason = gltf_validator.available()
+    if reason:
+        pytest.skip(reason)
+    report = gltf_validator.validate(path)
+    assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+
+
 def glb_json(path) -> dict:
     """The JSON chunk of a GLB file (glTF 2.0 binary container)."""
     data = open(path, "rb").read()
