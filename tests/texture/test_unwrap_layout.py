@@ -7,7 +7,7 @@ import pytest
 from mnacore.triangles import signed_areas
 from texture.unwrap import UnwrapConfig
 from texture.unwrap_islands import Island
-from texture.unwrap_layout import choose_layout, island_arrays, min_rect_rotation
+from texture.unwrap_layout import choose_layout, island_arrays, min_rect_rotation, quarter_turn
 from texture.verify import verify_packing
 
 
@@ -126,3 +126,48 @@ def test_halvings_go_on_while_each_pays_until_the_target():
     assert len(got.islands) == 5
     _, faces, island = island_arrays(got.islands)
     assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
+
+
+def _right_triangle(n: int, cell: float, k: int) -> Island:
+    """The lower-left half of an n-by-n grid of ``cell``-sized cells: a right isosceles triangle,
+    legs ``n * cell``, as island ``k`` (working faces and vertices numbered from ``k`` times its size)."""
+    g = _grid_island(n, n, cell)
+    c = g.uv[g.faces].mean(1)
+    faces = g.faces[c[:, 0] + c[:, 1] < n * cell]
+    vid, inv = np.unique(faces, return_inverse=True)
+    faces = inv.reshape(-1, 3)
+    return Island(faces, g.uv[vid], g.xyz[vid] + [5.0 * k, 0.0, 0.0], np.arange(len(faces)) + k * len(faces),
+                  np.arange(len(vid)) + k * len(vid), k)
+
+
+def test_quarter_turn_is_an_exact_rotation_about_the_centroid():
+    """One quarter turn takes u to v about the UV centroid; four give the island back (to rounding);
+    faces keep their winding (a rotation, not a mirror)."""
+    isl = _right_triangle(4, 0.25, 0)
+    c = isl.uv.mean(0)
+    one = quarter_turn(isl, 1)
+    d = isl.uv - c
+    assert np.array_equal(one.uv - c, np.column_stack([-d[:, 1], d[:, 0]]))
+    assert np.allclose(quarter_turn(one, 3).uv, isl.uv, rtol=0, atol=1e-15)
+    assert quarter_turn(isl, 4) is isl
+    assert signed_areas(quarter_turn(isl, 2).uv, isl.faces) == pytest.approx(signed_areas(isl.uv, isl.faces))
+
+
+def test_two_right_triangles_turned_half_a_turn_apart_pack_as_a_square():
+    """Two equal right isosceles triangles fill a square only when one is turned half a turn
+    against the other. Turned as xatlas turns them they pack below 0.5; the quarter-turn search
+    finds the square (about 0.8 with the gutters at 256 texels, 0.5 being the most two
+    triangles side by side in one turn can fill): rigidly, unmirrored, without overlap."""
+    tris = [_right_triangle(8, 0.125, 0), _right_triangle(8, 0.125, 1)]
+    comp = np.repeat([0, 1], len(tris[0].faces))  # two parts: no halving would be allowed anyway
+    got = choose_layout(tris, comp, UnwrapConfig(resolution=256, padding=4, pack_max_cuts=0))
+    assert got.stats["utilization_turned_as_xatlas"] < 0.5
+    assert got.packing.utilization > 0.75
+    uv, faces, island = island_arrays(got.islands)
+    px = got.packing.uv
+    assert (signed_areas(px, faces) > 0).all()
+    assert verify_packing(px, faces, island, 256)[0] == 0
+    # the right-angle corners (each grid's uv (0, 0)) sit at opposite corners of the square
+    offsets = np.cumsum([0] + [len(t.uv) for t in got.islands])
+    right = [px[offsets[k] + int(np.argmin(np.linalg.norm(tris[k].uv, axis=1)))] for k in range(2)]
+    assert np.abs(right[0] - right[1]) == pytest.approx(np.ptp(px, axis=0), rel=0.05)
