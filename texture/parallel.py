@@ -16,7 +16,10 @@ joining a thread of xatlas's own scheduler (once with fork, once with the fork s
 about a dozen test runs; presumably a wake-up its shutdown misses). So a pool in which no
 job has finished for ``STALL_SECONDS`` is taken for hung: its workers are killed and the
 jobs they had not finished run here instead, with the same result (the jobs are
-deterministic), only later.
+deterministic), only later. The hang comes with the number of xatlas calls: the unwrap's
+quarter-turn search makes 256 per unwrap, and one test run in about six then waited out a
+whole stall; the packer's own xatlas jobs (:mod:`texture.scale_search`, milliseconds to a
+second each) therefore pass a shorter stall.
 
 As with any fork server or spawn start (the default from Python 3.14), a script that calls
 the unwrap or export directly must guard its entry with ``if __name__ == "__main__":``
@@ -75,18 +78,20 @@ def _context():
 
 
 def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None = None, shared: Any = None,
-                 parallel: bool = True) -> list:
+                 parallel: bool = True, stall_seconds: float | None = None) -> list:
     """``[fn(job, shared) for job in jobs]`` in up to ``workers`` processes.
 
     ``fn`` must be a module-level function. ``shared`` (a KD-tree, a reference mesh) is
     pickled once per worker, not once per job. ``parallel=False`` (e.g. too little work to
-    pay for starting processes) runs here.
+    pay for starting processes) runs here. ``stall_seconds`` (default ``STALL_SECONDS``): how
+    long no job may finish before the pool is taken for hung; callers whose jobs are short
+    pass less, so a hang costs them that, not three minutes (the result is the same).
     """
     global _peak_worker_kb
     workers = min(len(jobs), workers or default_workers())
     if parallel and workers > 1:
         try:
-            futures = _pooled(fn, jobs, workers, shared)
+            futures = _pooled(fn, jobs, workers, shared, STALL_SECONDS if stall_seconds is None else stall_seconds)
         except (OSError, RuntimeError, ValueError):  # no processes here: run in this one
             pass
         else:
@@ -104,9 +109,9 @@ def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None 
     return [fn(j, shared) for j in jobs]
 
 
-def _pooled(fn, jobs: list, workers: int, shared) -> list:
+def _pooled(fn, jobs: list, workers: int, shared, stall: float) -> list:
     """The jobs' futures, once every job finished or the pool stalled (no job finished for
-    ``STALL_SECONDS``: its workers are killed and the unfinished futures left undone)."""
+    ``stall`` seconds: its workers are killed and the unfinished futures left undone)."""
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     ex = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_set_shared, initargs=(shared,))
@@ -114,7 +119,7 @@ def _pooled(fn, jobs: list, workers: int, shared) -> list:
     pending = set(futures)
     try:
         while pending:
-            done, pending = wait(pending, timeout=STALL_SECONDS, return_when=FIRST_COMPLETED)
+            done, pending = wait(pending, timeout=stall, return_when=FIRST_COMPLETED)
             if not done:
                 break
     finally:

@@ -28,6 +28,11 @@ COARSE, FINE_SHRINK = 4, 0.985
 COARSE_BISECT_TOL = 0.01
 #: utilisation the first guess's scale aims at (its pack is unbounded, so any value works)
 GUESS_UTILIZATION = 0.6
+#: seconds in which some job of a pool of xatlas packs must finish, or the pool is taken for
+#: hung (:mod:`texture.parallel`: xatlas's shutdown can miss a wake-up). A guess takes
+#: 7-20 ms, a coarse search (at most 16 packs) well under a second at 1M input faces: 20 s
+#: leaves room for a loaded machine, and a job that does take longer only runs again here.
+XATLAS_STALL_SECONDS = 20.0
 
 
 @dataclass(frozen=True)
@@ -156,7 +161,7 @@ def estimate_layouts(layouts: list[Layout], *, resolution: int = 2048, padding: 
     ``start`` for :func:`plan_layouts`), or None. The bounded search ends near it: a rough
     way to rank layouts."""
     jobs = [SearchJob(uv, faces, island, resolution, padding, dict(options or {})) for uv, faces, island in layouts]
-    return parallel_map(_estimate_job, jobs, workers)
+    return parallel_map(_estimate_job, jobs, workers, stall_seconds=XATLAS_STALL_SECONDS)
 
 
 def plan_layouts(layouts: list[Layout], *, candidates: tuple[dict, ...], resolution: int = 2048,
@@ -173,7 +178,7 @@ def plan_layouts(layouts: list[Layout], *, candidates: tuple[dict, ...], resolut
     starts = starts or [None] * len(layouts)
     jobs = [SearchJob(uv, faces, island, resolution, padding, opts, max_attempts, min_estimate, start)
             for (uv, faces, island), start in zip(layouts, starts) for opts in candidates]
-    results = parallel_map(_coarse_search, jobs, workers)
+    results = parallel_map(_coarse_search, jobs, workers, stall_seconds=XATLAS_STALL_SECONDS)
     n = len(candidates)
     return [_best_plan(results[li * n:(li + 1) * n]) for li in range(len(layouts))]
 

@@ -69,6 +69,15 @@ def test_a_stalled_pool_is_killed_and_its_unfinished_jobs_run_here(monkeypatch):
     assert time.perf_counter() - t0 < 60
 
 
+def test_a_caller_with_short_jobs_waits_out_its_own_shorter_stall():
+    # STALL_SECONDS stays at its default (minutes): the call's own value decides
+    assert parallel.STALL_SECONDS >= 60
+    t0 = time.perf_counter()
+    got = parallel_map(_hang_in_a_worker, [0, 1, 2, 3], workers=2, shared={"caller": os.getpid()}, stall_seconds=2.0)
+    assert got == [0, 10, 20, 30]
+    assert time.perf_counter() - t0 < 30
+
+
 def test_jobs_of_a_killed_pool_run_here_even_once_the_pool_marked_them_broken(monkeypatch):
     # the executor's thread marks a killed pool's unfinished futures broken at its own pace;
     # waiting for it here makes the slow-reader side of that race certain
