@@ -171,3 +171,28 @@ def test_two_right_triangles_turned_half_a_turn_apart_pack_as_a_square():
     offsets = np.cumsum([0] + [len(t.uv) for t in got.islands])
     right = [px[offsets[k] + int(np.argmin(np.linalg.norm(tris[k].uv, axis=1)))] for k in range(2)]
     assert np.abs(right[0] - right[1]) == pytest.approx(np.ptp(px, axis=0), rel=0.05)
+
+
+def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned():
+    """A comb with a speck of its part: two halvings pay as xatlas turns the islands, the third
+    does not (it gains under 0.02 there), and the quarter-turned four islands stay below 0.6.
+    Quarter-turned, the third halving gains more than ``pack_cut_gain`` over them and is kept:
+    five islands reach the target. Where the gain it must buy is higher (0.08), the search
+    stops after the first halving and nothing that falls short is kept."""
+    comb = _comb()
+    speck = _grid_island(1, 1, 0.02)
+    speck = Island(speck.faces, speck.uv, speck.xyz + [5.0, 0.0, 0.0], np.arange(len(speck.faces)) + len(comb.faces),
+                   np.arange(len(speck.uv)) + len(comb.uv), 1)
+    comp = np.zeros(len(comb.faces) + len(speck.faces), np.int64)
+    got = choose_layout([comb, speck], comp, UnwrapConfig(resolution=512, padding=4))
+    steps = got.stats["halvings"]
+    assert [bool(h.get("after_quarter_turns")) for h in steps] == [False, False, True]
+    assert got.stats["utilization_turned_as_xatlas"] < 0.6 <= got.packing.utilization
+    assert got.packing.utilization >= got.stats["utilization_turned_as_xatlas"] + 0.02
+    assert len(got.islands) == 5
+    uv, faces, island = island_arrays(got.islands)
+    assert (signed_areas(got.packing.uv, faces) > 0).all()
+    assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
+    strict = choose_layout([comb, speck], comp, UnwrapConfig(resolution=512, padding=4, pack_cut_gain=0.08))
+    assert len(strict.islands) == 3 and not any(h.get("after_quarter_turns") for h in strict.stats["halvings"])
+    assert strict.packing.utilization < 0.6
