@@ -18,8 +18,8 @@ job has finished for ``STALL_SECONDS`` is taken for hung: its workers are killed
 jobs they had not finished run here instead, with the same result (the jobs are
 deterministic), only later. The hang comes with the number of xatlas calls: the unwrap's
 quarter-turn search makes 256 per unwrap, and then a test run waited out a whole stall (one
-of two full CI runs, one of 18 runs of the unwrap tests); the packer's own xatlas jobs (:mod:`texture.scale_search`, milliseconds to a
-second each) therefore pass a shorter stall.
+of two full CI runs, one of 18 runs of the unwrap tests); the packer's own xatlas jobs
+(:mod:`texture.scale_search`, milliseconds to a second each) therefore pass a shorter stall.
 
 As with any fork server or spawn start (the default from Python 3.14), a script that calls
 the unwrap or export directly must guard its entry with ``if __name__ == "__main__":``

@@ -249,21 +249,34 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) ->
     return out
 
 
-def _best_halving(islands: list[Island], comp: np.ndarray, cfg, floor: float, cache: dict,
-                  first_seam: bool = False) -> tuple[_Packed, dict] | None:
-    """The best halving this round, packed, and its description; None if none packs above ``floor``."""
+#: one round's halvings (islands after each, its description) and the ``PACK_SEARCHED`` best
+#: guesses among them (candidate index, mode index)
+Ranked = tuple[list[tuple[list[Island], dict]], list[tuple[int, int]]]
+
+
+def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, first_seam: bool = False) -> Ranked:
+    """Every halving this round (:func:`_halvings`), each guessed in :data:`HALVING_MODES` by
+    one unbounded pack, and the best guesses."""
     cands = _halvings(islands, comp, cfg, first_seam)
-    if not cands:
-        return None
     guesses = []  # (guessed utilisation, candidate, mode)
     for m in HALVING_MODES:
+        if not cands:
+            break
         mode = PACK_MODES[m]
         arrays = [outline_arrays(turned(c, mode), cache) for c, _ in cands]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
         guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
-    top = guesses[:PACK_SEARCHED]
-    best = _best_packed([cands[i][0] for _, i, _ in top], [m for _, _, m in top], cfg, cache, floor)
+    return cands, [(i, m) for _, i, m in guesses[:PACK_SEARCHED]]
+
+
+def _best_halving(ranked: Ranked, cfg, floor: float, cache: dict) -> tuple[_Packed, dict] | None:
+    """The best of a round's best guesses (:func:`_ranked_halvings`), packed, and its
+    description; None if none packs above ``floor``."""
+    cands, top = ranked
+    if not top:
+        return None
+    best = _best_packed([cands[i][0] for i, _ in top], [m for _, m in top], cfg, cache, floor)
     if best is None:
         return None
     return best, next(d for c, d in cands if c is best.islands)
@@ -297,10 +310,11 @@ def _quarter_turned(islands: list[Island], cfg, cache: dict, floor: float) -> _P
     bounds = np.cumsum([0] + [len(v) for v in index])
     area = [float(np.abs(triangle_areas(isl.uv, isl.faces)).sum()) for isl in placed]
     big = np.argsort(area, kind="stable")[::-1][:TURNED_ISLANDS]
-    sets = [np.zeros(len(placed), np.int64) for _ in range(4 ** len(big))]
-    arrays = []
-    for k, turns in zip(sets, itertools.product(range(4), repeat=len(big))):
+    sets, arrays = [], []
+    for turns in itertools.product(range(4), repeat=len(big)):
+        k = np.zeros(len(placed), np.int64)
         k[big] = turns
+        sets.append(k)
         turned_uv = uv.copy()
         for i in big:  # the packer moves islands rigidly: where each turns about does not matter
             part = slice(bounds[i], bounds[i + 1])
@@ -321,26 +335,28 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
                                                   padding=cfg.padding), {"mode": 0, "halvings": []})
     stats = {"utilization_uncut": best.utilization, "halvings": []}
-    fell_short = False  # the rounds ended at an ordinary halving that did not pay
+    fell_short = None  # the ordinary round at which the rounds ended, its halving not paying
     for _ in range(cfg.pack_max_cuts):
         if best.utilization >= cfg.pack_target:
             break
-        got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_cut_gain, cache)
+        ranked = _ranked_halvings(best.islands, comp, cfg, cache)
+        got = _best_halving(ranked, cfg, best.utilization + cfg.pack_cut_gain, cache)
         if got is None or got[0].utilization < best.utilization + cfg.pack_cut_gain:
             # a part's first seam (it flattened as one island) must buy more
-            got = _best_halving(best.islands, comp, cfg, best.utilization + cfg.pack_first_seam_gain, cache, True)
+            first = _ranked_halvings(best.islands, comp, cfg, cache, True)
+            got = _best_halving(first, cfg, best.utilization + cfg.pack_first_seam_gain, cache)
             if got is None or got[0].utilization < best.utilization + cfg.pack_first_seam_gain:
-                fell_short = True
+                fell_short = ranked
                 break
         best = got[0]
         stats["halvings"].append({**got[1], "utilization": best.utilization})
     stats["utilization_turned_as_xatlas"] = best.utilization
-    as_xatlas = best
     if len(best.islands) > 1:
         best = _quarter_turned(best.islands, cfg, cache, best.utilization) or best
-    if fell_short and best.utilization < cfg.pack_target:
-        # the halving that fell short, judged as it will be delivered: quarter-turned too
-        missed = _best_halving(as_xatlas.islands, comp, cfg, 0.0, cache)
+    if fell_short is not None and best.utilization < cfg.pack_target:
+        # the halving that fell short (its round's guesses kept), judged as it will be
+        # delivered: quarter-turned too
+        missed = _best_halving(fell_short, cfg, 0.0, cache)
         turned_halving = None if missed is None else _quarter_turned(missed[0].islands, cfg, cache,
                                                                       best.utilization + cfg.pack_cut_gain)
         if turned_halving is not None:
