@@ -258,10 +258,10 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     """Every halving this round (:func:`_halvings`), each guessed in :data:`HALVING_MODES` by
     one unbounded pack, and the best guesses."""
     cands = _halvings(islands, comp, cfg, first_seam)
+    if not cands:
+        return cands, []
     guesses = []  # (guessed utilisation, candidate, mode)
     for m in HALVING_MODES:
-        if not cands:
-            break
         mode = PACK_MODES[m]
         arrays = [outline_arrays(turned(c, mode), cache) for c, _ in cands]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
