@@ -55,7 +55,7 @@ from .halving import LONG_CUTS, halve_across, island_parts, may_halve
 from .outlines import island_outlines
 from .pack import Packing, pack_islands
 from .regions import face_adjacency
-from .scale_search import estimate_layouts, plan_layouts
+from .scale_search import GUESS_UTILIZATION, coarse_size, estimate_layouts, plan_layouts
 from .similarity import similarity_fit
 from .unwrap_islands import Island
 
@@ -86,6 +86,9 @@ HALVING_MODES = (0, 2)
 PACK_CUT_ISLANDS = 3
 #: candidates searched per round, best first guess first
 PACK_SEARCHED = 3
+#: the guesses' outlines are simplified within this many coarse texels
+#: (:func:`guess_tolerance`): below what xatlas's rasteriser resolves
+GUESS_TEXELS = 0.5
 
 
 def min_rect_rotation(uv: np.ndarray) -> np.ndarray:
@@ -126,7 +129,7 @@ def island_arrays(islands: list[Island]) -> tuple[np.ndarray, np.ndarray, np.nda
             np.repeat(np.arange(len(islands)), [len(isl.faces) for isl in islands]))
 
 
-def outline_arrays(islands: list[Island], cache: dict, index: list | None = None
+def outline_arrays(islands: list[Island], cache: dict, index: list | None = None, tolerance: float = 0.0,
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(uv, faces, island) of the islands' outlines only (:func:`texture.outlines.island_outlines`:
     the same region per island, border vertices only): what xatlas needs for a guess
@@ -134,15 +137,18 @@ def outline_arrays(islands: list[Island], cache: dict, index: list | None = None
     at 1M input faces, pickled to a worker per candidate). ``cache`` keeps each island's
     outline by its faces array: a turned island shares them, and a rotation keeps a
     triangulation valid. ``index``: a list that receives each island's outline vertices
-    (indices into its ``uv``), in the order of the returned ``uv``."""
+    (indices into its ``uv``), in the order of the returned ``uv``. ``tolerance``: the
+    outlines simplified within it, for guesses (:func:`guess_tolerance`; a rotation keeps
+    the simplification, as it keeps a triangulation)."""
     uvs, faces, owner = [], [], []
     offset = 0
     for k, isl in enumerate(islands):
-        hit = cache.get(id(isl.faces))
+        key = (id(isl.faces), tolerance)
+        hit = cache.get(key)
         if hit is None or hit[0] is not isl.faces:
-            tri = island_outlines(isl.uv, isl.faces, np.zeros(len(isl.faces), np.int64))
+            tri = island_outlines(isl.uv, isl.faces, np.zeros(len(isl.faces), np.int64), tolerance)
             vid, inv = np.unique(tri, return_inverse=True)
-            hit = cache[id(isl.faces)] = (isl.faces, vid, inv.reshape(-1, 3))
+            hit = cache[key] = (isl.faces, vid, inv.reshape(-1, 3))
         uvs.append(isl.uv[hit[1]])
         if index is not None:
             index.append(hit[1])
@@ -150,6 +156,16 @@ def outline_arrays(islands: list[Island], cache: dict, index: list | None = None
         owner.append(np.full(len(hit[2]), k))
         offset += len(hit[1])
     return np.concatenate(uvs), np.concatenate(faces), np.concatenate(owner)
+
+
+def guess_tolerance(islands: list[Island], cfg) -> float:
+    """UV distance of ``GUESS_TEXELS`` coarse texels at the scale a guess packs at (its
+    unbounded pack aims at ``GUESS_UTILIZATION`` of the coarse atlas): the guesses' outlines
+    are simplified within it (:func:`texture.outlines.island_outlines`). The islands' total
+    area, and so the tolerance, is the same for every halving and turn of them."""
+    area = float(sum(np.abs(triangle_areas(isl.uv, isl.faces)).sum() for isl in islands))
+    res, _ = coarse_size(cfg.resolution, cfg.padding)
+    return GUESS_TEXELS * np.sqrt(area / GUESS_UTILIZATION) / res if area > 0 else 0.0
 
 
 @dataclass
@@ -261,9 +277,10 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     if not cands:
         return cands, []
     guesses = []  # (guessed utilisation, candidate, mode)
+    tol = guess_tolerance(islands, cfg)
     for m in HALVING_MODES:
         mode = PACK_MODES[m]
-        arrays = [outline_arrays(turned(c, mode), cache) for c, _ in cands]
+        arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c, _ in cands]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
         guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
@@ -306,7 +323,7 @@ def _quarter_turned(islands: list[Island], cfg, cache: dict, floor: float) -> _P
     packed; 256 turned copies of the 1M-face bunny's islands took 0.6 GB)."""
     placed = turned(islands, PACK_MODES[2])
     index: list = []
-    uv, faces, owner = outline_arrays(placed, cache, index)
+    uv, faces, owner = outline_arrays(placed, cache, index, guess_tolerance(placed, cfg))
     bounds = np.cumsum([0] + [len(v) for v in index])
     area = [float(np.abs(triangle_areas(isl.uv, isl.faces)).sum()) for isl in placed]
     big = np.argsort(area, kind="stable")[::-1][:TURNED_ISLANDS]

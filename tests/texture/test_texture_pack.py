@@ -269,6 +269,39 @@ def test_island_outline_is_the_border_ear_clipped(hole):
     np.testing.assert_array_equal(face_id_image(scaled[out], 52, 52)[0] >= 0, face_id_image(scaled[faces], 52, 52)[0] >= 0)
 
 
+def _annulus(n=720, r=(0.25, 3.0), rings=6):
+    """A ring of ``rings`` x ``n`` quads between radii ``r``: two border circles of n vertices each."""
+    rad = np.linspace(r[0], r[1], rings + 1)
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    uv = (rad[:, None, None] * np.stack([np.cos(t), np.sin(t)], -1)[None]).reshape(-1, 2)
+    i, j = np.meshgrid(np.arange(rings), np.arange(n), indexing="ij")
+    a, b = i * n + j, i * n + (j + 1) % n
+    c, d = a + n, b + n
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    return uv, faces
+
+
+@pytest.mark.parametrize("tol", [1e-3, 1e-2, 5e-2])
+def test_simplified_outline_stays_within_its_tolerance(tol):
+    uv, faces = _annulus()
+    island = np.zeros(len(faces), np.int64)
+    exact = island_outlines(uv, faces, island)
+    coarse = island_outlines(uv, faces, island, tolerance=tol)
+    assert len(np.unique(exact)) == 2 * 720  # both circles, every vertex
+    # Douglas-Peucker on a circle of radius R keeps one vertex per chord of sagitta <= tol:
+    # about pi / sqrt(2 tol / R) per circle (and at least 3 on the small one)
+    def kept(radius):
+        return max(3.0, np.pi / np.sqrt(2.0 * tol / radius))
+    n = len(np.unique(coarse))
+    assert kept(3.0) + 3 <= n <= 2.0 * (kept(3.0) + kept(0.25)) + 8
+    # the region moves by at most tol across each border: area within tol x perimeter
+    perimeter = 2 * np.pi * (3.0 + 0.25)
+    exact_area = triangle_areas(uv, exact).sum()
+    assert abs(triangle_areas(uv, coarse).sum() - exact_area) <= tol * perimeter
+    # every kept vertex is a border vertex of the island (the outline never invents points)
+    assert set(np.unique(coarse)) <= set(np.unique(exact))
+
+
 def test_island_outline_keeps_faces_where_uvs_overlap_or_border_pinches():
     uv, faces = _grid_island(n=4)
     folded = uv.copy()
