@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --only bunny eight --steps 1000 --no-write
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --reuse               # keep existing fits in --work
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --scale --reuse       # + the bunny at 111k and 1.0M faces
+    .venv/bin/python benchmarks/unwrap_vs_xatlas.py --held-out --only genus4 plate6 ...  # + the hard shapes
 
 Per mesh (``../shared/data/meshes`` when present, plus procedural shapes from
 ``mna.shapes``: sphere, torus (genus 1), genus-2, two spheres, a wavy open sheet): a fit
@@ -15,6 +16,9 @@ the same mesh as ``mna unwrap`` reads it: defaults, and the sweep point
 every row. Targets of issue 17 checked per mesh: islands <= 8 on a single-part mesh
 (<= 1.5 per part and <= half of xatlas's on many-part meshes), seam <= 1/2 of xatlas's,
 distortion_metric <= 0.15, 0 flipped faces, 0 overlap, utilisation >= 0.6.
+
+``--held-out``: also the fit benchmark's hard shapes (``mna.shapes.HARD_SHAPES``: genus 3, 4
+and 6, fine bumps, thin limbs, a 12-part assembly), which no unwrap rule was tuned on.
 
 ``--scale``: the bunny subdivided twice (1-to-4, 111k faces) and that split 1-to-9 (1.0M
 faces), the same surface, so the bunny's fit serves both; ours and xatlas (defaults) each
@@ -47,7 +51,7 @@ SECTION = "unwrap_vs_xatlas"
 PROCEDURAL = ("sphere", "torus", "genus2", "two_spheres", "wavy_sheet")
 
 
-def _inputs(work: Path, only: list[str] | None) -> list[Path]:
+def _inputs(work: Path, only: list[str] | None, held_out: bool = False) -> list[Path]:
     from mna import shapes
 
     paths = sorted(p for p in MESHES.glob("*") if p.suffix in (".obj", ".off", ".ply")) if MESHES.is_dir() else []
@@ -58,6 +62,8 @@ def _inputs(work: Path, only: list[str] | None) -> list[Path]:
             mesh = shapes.sheet(amplitude=0.3) if name == "wavy_sheet" else shapes.make(name)
             mesh.export(path)
         paths.append(path)
+    if held_out:
+        paths += [shapes.shape_file(name, work) for name in shapes.HARD_SHAPES]
     return [p for p in paths if not only or p.stem in only]
 
 
@@ -305,6 +311,7 @@ def main() -> int:
     ap.add_argument("--size", type=int, default=2048)
     ap.add_argument("--reuse", action="store_true", help="reuse fits already in --work")
     ap.add_argument("--no-write", action="store_true", help="print the section instead of writing RESULTS.md")
+    ap.add_argument("--held-out", action="store_true", help="also the hard shapes of mna.shapes (genus 3-6, bumps, limbs, 12 parts)")
     ap.add_argument("--scale", action="store_true", help="also the bunny at 111k and 1.0M faces")
     ap.add_argument("--scale-only", action="store_true", help="only the bunny at 111k and 1.0M faces")
     ap.add_argument("--xatlas-timeout", type=float, default=900.0, help="seconds before a scale run of xatlas stops")
@@ -315,7 +322,7 @@ def main() -> int:
         return 0
     work = Path(args.work)
     results = []
-    for mesh in ([] if args.scale_only else _inputs(work, args.only)):
+    for mesh in ([] if args.scale_only else _inputs(work, args.only, args.held_out)):
         print(f"== {mesh.stem}", flush=True)
         results.append(run_one(mesh, work, args.steps, args.size, args.reuse))
         (work / "results.json").write_text(json.dumps(results, indent=1, default=float))

@@ -172,7 +172,7 @@ def lscm(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
     is an embedding: every face turned the same way, the border crossing nowhere."""
     import igl
 
-    from .relax import crossing_edges
+    from .relax import is_injective
 
     bnd = ordered_boundary(faces)
     if len(bnd) < 3:
@@ -189,9 +189,7 @@ def lscm(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
         return None
     if signed_areas(uv, faces).sum() < 0:  # LSCM keeps angles, not necessarily the turning
         uv[:, 0] = -uv[:, 0]
-    if (signed_areas(uv, faces) <= 0).any() or len(crossing_edges(faces, uv)):
-        return None
-    return uv
+    return uv if is_injective(uv, faces) else None
 
 
 def holed_map(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:

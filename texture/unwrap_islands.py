@@ -16,7 +16,7 @@ from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_ma
 from .holes import cut_seam, flatten_filled
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import MULTIRES_FACES, RelaxConfig, crossing_edges, energy_excess, relax_island
+from .relax import MULTIRES_FACES, RelaxConfig, energy_excess, is_injective, relax_island
 from .slits import slit_island
 
 
@@ -137,8 +137,7 @@ def _holed(p: np.ndarray, f: np.ndarray, rule: HoledRule | None) -> np.ndarray |
     uv *= np.sqrt(triangle_areas(p, f).sum() / signed_areas(uv, f).sum())
     if energy_excess(p, uv, f) > rule.within:
         uv = relax_island(p, uv, f, rule.relax, check_crossings=False).uv
-    ok = np.isfinite(uv).all() and (signed_areas(uv, f) > 0).all() and not len(crossing_edges(f, uv))
-    return uv if ok and energy_excess(p, uv, f) <= rule.within else None
+    return uv if is_injective(uv, f) and energy_excess(p, uv, f) <= rule.within else None
 
 
 def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,

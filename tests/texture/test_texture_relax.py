@@ -185,3 +185,75 @@ def test_unguarded_run_keeps_its_best_valid_iterate_and_relax_disk_continues_fro
     assert len(crossing_edges(faces, out)) == 0 and _overlap_texels(out, faces) == 0
     assert (_signed_areas(out, faces) > 0).all()
     assert energy_excess(xyz, out, faces) <= free.valid_excess < free.excess_before / 18
+
+
+def _flap_annulus(h=0.5):
+    """A 4 x 4 square (grid step ``h``) slit along y = 2 from x = 1 to 3, with a 2 x 1 flap
+    glued to the slit's lower lip and lying over the square (tilted up in 3D): an annulus
+    (one hole: the upper lip and the flap's free sides) whose identity map (x, y) flips no
+    face and whose border crosses nowhere, yet covers the flap's rectangle twice: its hole
+    loop runs counter-clockwise."""
+    n = int(round(4 / h)) + 1
+    x, y = np.meshgrid(np.arange(n) * h, np.arange(n) * h, indexing="xy")
+    pts = [np.column_stack([x.ravel(), y.ravel(), np.zeros(n * n)])]
+    faces = _grid(n, n)
+    idx = lambda i, j: j * n + i  # noqa: E731
+    j0, i0, i1 = int(round(2 / h)), int(round(1 / h)), int(round(3 / h))
+    # the upper lip: faces above the slit take copies of the slit's inner vertices
+    inner = [idx(i, j0) for i in range(i0 + 1, i1)]
+    copy = {v: n * n + k for k, v in enumerate(inner)}
+    pts.append(pts[0][inner])
+    cy = pts[0][faces][:, :, 1].mean(1)
+    cx = pts[0][faces][:, :, 0].mean(1)
+    above = (cy > 2) & (cy < 2 + h) & (cx > 1) & (cx < 3)
+    faces[above] = np.vectorize(lambda v: copy.get(v, v))(faces[above])
+    # the flap: a grid over [1, 3] x [2, 3], its bottom row the slit's (lower lip) vertices
+    fu, fv = i1 - i0 + 1, int(round(1 / h)) + 1
+    base = sum(len(p) for p in pts)
+    fx, fy = np.meshgrid(1 + np.arange(fu) * h, 2 + np.arange(fv) * h, indexing="xy")
+    pts.append(np.column_stack([fx.ravel(), fy.ravel(), 0.3 * (fy.ravel() - 2)]))
+    flap = _grid(fu, fv) + base
+    ids = np.arange(base, base + fu * fv)
+    ids[:fu] = [idx(i, j0) for i in range(i0, i1 + 1)]
+    flap = ids[flap - base]
+    xyz = np.concatenate(pts)
+    keep = np.unique(np.concatenate([faces.ravel(), flap.ravel()]))
+    remap = np.full(len(xyz), -1)
+    remap[keep] = np.arange(len(keep))
+    f = remap[np.concatenate([faces, flap])]
+    return xyz[keep], f
+
+
+def test_hole_running_counter_clockwise_is_an_overlap_flips_and_crossings_miss():
+    from texture.flatten import euler_characteristic
+    from texture.relax import holes_run_clockwise, is_injective
+
+    xyz, faces = _flap_annulus()
+    uv = xyz[:, :2]
+    assert euler_characteristic(faces) == 0 and len(np.unique(boundary_edges(faces)[:, 0])) == len(boundary_edges(faces))
+    assert (_signed_areas(uv, faces) > 0).all() and len(crossing_edges(faces, uv)) == 0
+    # rasterised: the flap's 2 x 1 rectangle is covered twice, 1/8 of the 4 x 4 square
+    assert _overlap_texels(uv / 4.0, faces, 256) == pytest.approx(256 * 256 / 8, rel=0.05)
+    assert not holes_run_clockwise(uv, faces) and not is_injective(uv, faces)
+    # the same square with a real hole (the flap's rectangle cut out): injective
+    keep = ~((uv[faces].mean(1)[:, 0] > 1) & (uv[faces].mean(1)[:, 0] < 3)
+             & (uv[faces].mean(1)[:, 1] > 2) & (uv[faces].mean(1)[:, 1] < 3))
+    holed = faces[keep]
+    assert holes_run_clockwise(uv, holed) and is_injective(uv, holed) and _overlap_texels(uv / 4.0, holed, 256) == 0
+
+
+def test_a_holed_region_whose_conformal_map_laps_over_a_hole_is_cut_instead():
+    from texture.unwrap_islands import HoledRule, _holed
+
+    xyz, faces = _flap_annulus()
+    rule = HoledRule(within=10.0, relax=RelaxConfig(iterations=0), max_faces=10**6)
+    uv = _holed(xyz, faces, rule)
+    assert uv is None or _overlap_texels((uv - uv.min(0)) / np.ptp(uv, 0).max(), faces, 256) == 0
+    # a plain holed plate keeps its uncut map
+    keep = ~((xyz[faces].mean(1)[:, 0] > 1) & (xyz[faces].mean(1)[:, 0] < 3)
+             & (xyz[faces].mean(1)[:, 1] > 2) & (xyz[faces].mean(1)[:, 1] < 3))
+    plate = faces[keep]
+    used = np.unique(plate)
+    remap = np.full(len(xyz), -1)
+    remap[used] = np.arange(len(used))
+    assert _holed(xyz[used], remap[plate], rule) is not None
