@@ -60,6 +60,7 @@ from .relax import MULTIRES_FACES
 from .unwrap_islands import (
     WHOLE,
     Island,
+    audit_islands,
     flatten_region,
     holed_rule,
     prefer_whole,
@@ -318,6 +319,9 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     ear_stats = {}
     if cfg.move_ears:
         islands, ear_stats = move_ears(islands)
+
+    islands, audit_stats = audit_islands(islands, xyz, prep.work_faces, cfg)
+    split_stats.update(audit_stats)
 
     stage("pack")
     packing, islands, offsets, mirrored, layout_stats = _packed(islands, prep.component, cfg)

@@ -16,7 +16,15 @@ from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_ma
 from .holes import cut_seam, flatten_filled
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import MULTIRES_FACES, RelaxConfig, energy_excess, is_injective, relax_island
+from .relax import (
+    MULTIRES_FACES,
+    RelaxConfig,
+    crossing_edges,
+    energy_excess,
+    holes_run_clockwise,
+    is_injective,
+    relax_island,
+)
 from .slits import slit_island
 
 
@@ -307,3 +315,41 @@ def slit_islands(islands: list[Island], cfg, max_length: list[float] | None = No
         st["islands_slit"] += 1
         st["slits"] += r.slits
     return st
+
+
+def overlaps_itself(isl: Island) -> bool:
+    """Whether the island's map folds over itself: a face turned over, its border crossing
+    itself, or a hole loop running counter-clockwise (:func:`texture.relax.is_injective`; a
+    face of zero UV area, a sliver, is not counted here)."""
+    uv, faces = isl.uv, isl.faces
+    return bool(not np.isfinite(uv).all() or (signed_areas(uv, faces) < 0).any() or len(crossing_edges(faces, uv))
+                or not holes_run_clockwise(uv, faces))
+
+
+def audit_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, cfg) -> tuple[list[Island], dict]:
+    """Every island checked before packing (:func:`overlaps_itself`); one that overlaps itself
+    is flattened again from its faces as a disk (cut, a conformal or Tutte start, then SLIM
+    that keeps it injective: :func:`flatten_region` without holed islands, :func:`relax_islands`).
+
+    Every path that makes an island is meant to keep its map injective; this is the net under
+    them, as no check short of one like this saw the hole that lapped over itself (a map of a
+    plate with holes). ``stats``: how many islands were flattened again, and how many of
+    those could not be (kept as they were: the harness's overlap then shows them)."""
+    out, stats = [], {"reflattened": 0, "reflatten_failed": 0}
+    for isl in islands:
+        if len(isl.faces) < 2 or not overlaps_itself(isl):
+            out.append(isl)
+            continue
+        fstats = {"region_splits": 0, "cut_edges": 0}
+        try:
+            new = flatten_region(xyz, work_faces[isl.work_faces], isl.work_faces, isl.label, cfg.max_split_depth, fstats)
+        except (RuntimeError, ValueError, KeyError, IndexError):
+            new = []
+        relax_islands(new, cfg)
+        if new and not any(overlaps_itself(i) for i in new):
+            out += new
+            stats["reflattened"] += 1
+        else:
+            out.append(isl)
+            stats["reflatten_failed"] += 1
+    return out, stats

@@ -257,3 +257,27 @@ def test_a_holed_region_whose_conformal_map_laps_over_a_hole_is_cut_instead():
     remap = np.full(len(xyz), -1)
     remap[used] = np.arange(len(used))
     assert _holed(xyz[used], remap[plate], rule) is not None
+
+
+def test_the_audit_flattens_again_an_island_that_overlaps_itself():
+    from texture.unwrap import UnwrapConfig
+    from texture.unwrap_islands import Island, audit_islands, overlaps_itself
+
+    xyz, faces = _flap_annulus()
+    lapped = Island(faces, xyz[:, :2].copy(), xyz, np.arange(len(faces)), np.arange(len(xyz)), 0)
+    keep = ~((xyz[faces].mean(1)[:, 0] > 1) & (xyz[faces].mean(1)[:, 0] < 3)
+             & (xyz[faces].mean(1)[:, 1] > 2) & (xyz[faces].mean(1)[:, 1] < 3))
+    fine = Island(faces[keep], xyz[:, :2].copy(), xyz, np.flatnonzero(keep), np.arange(len(xyz)), 1)
+    assert overlaps_itself(lapped) and not overlaps_itself(fine)
+    out, stats = audit_islands([fine, lapped], xyz, faces, UnwrapConfig())
+    assert stats == {"reflattened": 1, "reflatten_failed": 0}
+    assert out[0] is fine  # left as it was
+    new = out[1:]
+    # the lapped island's faces, each once, now flattened without overlap (rasterised too)
+    assert sorted(np.concatenate([i.work_faces for i in new]).tolist()) == list(range(len(faces)))
+    for isl in new:
+        assert not overlaps_itself(isl) and _overlap_texels(isl.uv, isl.faces, 256) == 0
+        # at the isometric scale, as every island: UV area = 3D area (within SLIM's tolerance)
+        assert _signed_areas(isl.uv, isl.faces).sum() == pytest.approx(
+            0.5 * np.linalg.norm(np.cross(isl.xyz[isl.faces[:, 1]] - isl.xyz[isl.faces[:, 0]],
+                                          isl.xyz[isl.faces[:, 2]] - isl.xyz[isl.faces[:, 0]]), axis=1).sum(), rel=0.05)
