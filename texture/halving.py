@@ -190,13 +190,17 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
 
 def may_halve(islands_in_part: int, cfg) -> bool:
     """Whether an island of a part (connected component) holding ``islands_in_part`` islands
-    may be halved for its length or for an ordinary packing gain. Never past
-    ``cfg.long_max_islands``, and not a part that flattened as one island: that is the fewest
-    seams it can have (none on an open, disk-like part), and a compact island just over the
-    atlas side costs only a few hundredths of utilisation, less than a first seam is worth.
-    Such a part is halved only by the packing search, for ``cfg.pack_first_seam_gain``
-    (:mod:`texture.unwrap_layout`), or for its length where it is a strip (:data:`LONE_LONG`)."""
-    return 1 < islands_in_part < cfg.long_max_islands
+    may be halved for its length or for an ordinary packing gain. Never from within
+    ``cfg.long_max_islands`` to past it (the island target), and not a part that flattened as
+    one island: that is the fewest seams it can have (none on an open, disk-like part), and a
+    compact island just over the atlas side costs only a few hundredths of utilisation, less
+    than a first seam is worth. Such a part is halved only by the packing search, for
+    ``cfg.pack_first_seam_gain`` (:mod:`texture.unwrap_layout`), or for its length where it
+    is a strip (:data:`LONE_LONG`). A part already past the cap (its topology or distortion
+    took more islands: a genus-6 plate's 9) misses the island target whether it is halved or
+    not, so there a halving is judged by its gain alone (that plate: utilisation 0.44 -> 0.65
+    for one cut of 0.79)."""
+    return 1 < islands_in_part and islands_in_part != cfg.long_max_islands
 
 
 #: a part that flattened as one island (its fewest seams) is halved for its length only when

@@ -127,7 +127,8 @@ class UnwrapConfig:
     long_max_splits: int = 4
     """Most such halvings (0 = off)."""
     long_max_islands: int = 8
-    """No such halving (nor a packing halving) gives a connected component more islands than this."""
+    """No such halving (nor a packing halving) takes a connected component from within this
+    many islands past it (a part already past it is halved on gain alone: :func:`texture.halving.may_halve`)."""
     pack_target: float = 0.6
     """Islands are halved for packing (:mod:`texture.unwrap_layout`) only while no layout packs
     this utilisation (coarse)."""

@@ -20,7 +20,8 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    edges (UVs kept, so flips, overlap and distortion do not change), across or along its
    principal axis, in the middle or a quarter off one end. A halving adds seam, so it is kept
    only when it gains ``cfg.pack_cut_gain``, at most ``cfg.pack_max_cuts`` of them, never
-   more than ``cfg.long_max_islands`` islands per connected component; a part that flattened
+   taking a connected component from within ``cfg.long_max_islands`` islands past it
+   (:func:`texture.halving.may_halve`); a part that flattened
    as one island (its fewest possible seams) is halved only for ``cfg.pack_first_seam_gain``.
 
 3. **Quarter turns** (:func:`_quarter_turned`), last: the chosen islands, each turned to its

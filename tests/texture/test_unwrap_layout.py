@@ -95,6 +95,18 @@ def test_no_halving_at_the_target_or_past_the_island_cap():
     assert len(capped.islands) == 2 and capped.stats["halvings"] == []
 
 
+def test_a_part_already_past_the_island_cap_is_halved_on_gain_alone():
+    """The same two islands with a cap of 1: the part is past it whether the strip is halved
+    or not (the island target is missed either way), so the halving is judged by its gain,
+    as below the cap; with the cap at 2 it stays refused (the test above)."""
+    strip, small = _pair()
+    comp = np.zeros(len(strip.faces) + len(small.faces), np.int64)
+    free = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4))
+    past = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=1))
+    assert len(free.stats["halvings"]) >= 1 and free.packing.utilization > free.stats["utilization_uncut"] + 0.02
+    assert len(past.islands) == len(free.islands) and past.packing.utilization == pytest.approx(free.packing.utilization)
+
+
 def _comb(teeth: int = 4, height: int = 8, cell: float = 0.25) -> Island:
     """A comb: a 3-cell-high back with ``teeth`` 3-cell-wide teeth ``height`` cells long,
     4 cells apart (a flat grid island with cells removed, UV = xy)."""
