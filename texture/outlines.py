@@ -84,16 +84,13 @@ def _simplified(uv: np.ndarray, loop: np.ndarray, tolerance: float) -> np.ndarra
     return loop[pos] if len(pos) >= 3 else loop
 
 
-def _ear_clipped(uv: np.ndarray, loops: list[np.ndarray]) -> tuple[np.ndarray, float]:
-    """(triangles of ``loops`` ear-clipped with the first as the outer border, the region's
-    area as the loops give it: outer minus holes)."""
+def _ear_clipped(uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """(T, 3) triangles of ``loops`` ear-clipped, the first loop the outer border."""
     import mapbox_earcut
 
     verts = np.concatenate(loops)
     ends = np.cumsum([len(loop) for loop in loops]).astype(np.uint32)
-    tri = verts[mapbox_earcut.triangulate_float64(np.ascontiguousarray(uv[verts]), ends).astype(np.int64)]
-    areas = [abs(_loop_area(uv[loop])) for loop in loops]
-    return tri.reshape(-1, 3), areas[0] - sum(areas[1:])
+    return verts[mapbox_earcut.triangulate_float64(np.ascontiguousarray(uv[verts]), ends).astype(np.int64)].reshape(-1, 3)
 
 
 def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, tolerance: float = 0.0) -> np.ndarray:
@@ -117,12 +114,14 @@ def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, toler
             outer = int(np.argmax(areas))
             loops = [loops[outer]] + [loop for i, loop in enumerate(loops) if i != outer]
             loops = [_without_straight_runs(uv, loop) for loop in loops]
-            tri, _ = _ear_clipped(uv, loops)
+            tri = _ear_clipped(uv, loops)
             own = float(triangle_areas(uv, f).sum())
             if len(tri) == 0 or abs(float(triangle_areas(uv, tri).sum()) - own) > 1e-9 * own:
                 tri = None
             elif tolerance > 0:
-                coarse, area = _ear_clipped(uv, [_simplified(uv, loop, tolerance) for loop in loops])
+                simple = [_simplified(uv, loop, tolerance) for loop in loops]
+                coarse = _ear_clipped(uv, simple)
+                area = abs(_loop_area(uv[simple[0]])) - sum(abs(_loop_area(uv[loop])) for loop in simple[1:])
                 if len(coarse) and area > 0 and abs(float(triangle_areas(uv, coarse).sum()) - area) <= 1e-9 * area:
                     tri = coarse
         out.append(f if tri is None else tri)

@@ -103,15 +103,21 @@ def boundary_length(xyz: np.ndarray, faces: np.ndarray) -> float:
     return float(np.linalg.norm(xyz[e[:, 0]] - xyz[e[:, 1]], axis=1).sum())
 
 
-def is_injective(uv: np.ndarray, faces: np.ndarray) -> bool:
+def is_injective(uv: np.ndarray, faces: np.ndarray, slivers: bool = False) -> bool:
     """Whether the map is finite, flips no face, its border does not cross itself
     (:func:`crossing_edges`) and its holes run clockwise (:func:`holes_run_clockwise`):
-    then the island does not overlap itself."""
-    return bool(np.isfinite(uv).all() and (signed_areas(uv, faces) > 0).all() and not len(crossing_edges(faces, uv))
-                and holes_run_clockwise(uv, faces))
+    then the island does not overlap itself. ``slivers``: a face of zero UV area passes
+    (it covers nothing twice); by default every face must have positive area."""
+    if not np.isfinite(uv).all():
+        return False
+    area = signed_areas(uv, faces)
+    if not ((area >= 0) if slivers else (area > 0)).all():
+        return False
+    edges = boundary_edges(faces)
+    return bool(not len(crossing_edges(faces, uv, edges)) and holes_run_clockwise(uv, faces, edges))
 
 
-def holes_run_clockwise(uv: np.ndarray, faces: np.ndarray) -> bool:
+def holes_run_clockwise(uv: np.ndarray, faces: np.ndarray, edges: np.ndarray | None = None) -> bool:
     """Whether every border loop but the largest (by UV area) runs clockwise in UV, each
     loop directed as its faces run (the largest then runs counter-clockwise on a flip-free map).
 
@@ -121,11 +127,11 @@ def holes_run_clockwise(uv: np.ndarray, faces: np.ndarray) -> bool:
     flips and crossings are all that can make it overlap itself; with holes, a hole loop
     that runs counter-clockwise covers its inside twice, with no face flipped and no border
     edge crossing (a plate's conformal map, whose region around a hole lapped over it like a
-    tongue: 2.5 % of a held-out genus-3 shape's texels)."""
+    tongue: 2.5 % of a held-out genus-3 shape's texels). ``edges``: the boundary edges, if known."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    edges = boundary_edges(faces)
+    edges = boundary_edges(faces) if edges is None else edges
     if len(edges) == 0:
         return True
     n = int(np.asarray(faces).max()) + 1

@@ -16,15 +16,7 @@ from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_ma
 from .holes import cut_seam, flatten_filled
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import (
-    MULTIRES_FACES,
-    RelaxConfig,
-    crossing_edges,
-    energy_excess,
-    holes_run_clockwise,
-    is_injective,
-    relax_island,
-)
+from .relax import MULTIRES_FACES, RelaxConfig, energy_excess, is_injective, relax_island
 from .slits import slit_island
 
 
@@ -321,9 +313,7 @@ def overlaps_itself(isl: Island) -> bool:
     """Whether the island's map folds over itself: a face turned over, its border crossing
     itself, or a hole loop running counter-clockwise (:func:`texture.relax.is_injective`; a
     face of zero UV area, a sliver, is not counted here)."""
-    uv, faces = isl.uv, isl.faces
-    return bool(not np.isfinite(uv).all() or (signed_areas(uv, faces) < 0).any() or len(crossing_edges(faces, uv))
-                or not holes_run_clockwise(uv, faces))
+    return not is_injective(isl.uv, isl.faces, slivers=True)
 
 
 def audit_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, cfg) -> tuple[list[Island], dict]:
