@@ -126,6 +126,11 @@ class FitConfig(AtlasSettings):
     preset: str = "fast"
     uv_samples: int = 5000
     """UV samples per chart per step."""
+    late_uv_samples: int = 0
+    """UV samples per chart per step once the lr decays (progress >= ``lr_decay_start``);
+    0 = ``uv_samples`` throughout. Each target is pulled toward its nearest sample, so the
+    samples' spacing is the finest error the loss can see: where the decay refines the fit,
+    denser samples let it see detail that the early steps (which place the charts) need not."""
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
     charts_rule: str = "fixed"
@@ -166,6 +171,7 @@ class FitConfig(AtlasSettings):
             check_int(self.steps, "steps", 0)
         for name in ("uv_samples", "targets", "checkpoint_every", "log_every"):
             check_int(getattr(self, name), name, 1)
+        check_int(self.late_uv_samples, "late_uv_samples", 0)
         check_int(self.hard_targets, "hard_targets", 0)
         check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
         check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)

@@ -79,11 +79,17 @@ class Fitter:
     def done(self) -> bool:
         return self.progress() >= 1.0
 
+    def uv_samples(self) -> int:
+        """UV samples per chart this step: ``late_uv_samples`` from the lr decay on (if set)."""
+        cfg = self.cfg
+        late = cfg.late_uv_samples and self.progress() >= cfg.lr_decay_start
+        return cfg.late_uv_samples if late else cfg.uv_samples
+
     def train_step(self) -> StepLosses:
         cfg, model, dev = self.cfg, self.model, self.device
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr * lr_factor(self.progress(), cfg.lr_decay_start, cfg.lr_final)
-        uv = uniform_uv(cfg.model.charts, cfg.uv_samples, self.generator, 1, dev)
+        uv = uniform_uv(cfg.model.charts, self.uv_samples(), self.generator, 1, dev)
         pts, nrm, elements = self.surface.sample_elements(cfg.targets, self.rng)
         if self.hard is not None:
             hp, hn, he = self.hard.draw(self.rng)

@@ -18,3 +18,50 @@ def test_cosine_values():
 
 def test_no_decay_when_start_is_one():
     assert lr_factor(1.0, 1.0, 0.02) == 1.0
+
+
+def test_late_uv_samples_start_with_the_decay(monkeypatch):
+    """A 10-step fit decaying from half way draws ``uv_samples`` per chart for steps 1-5 and
+    ``late_uv_samples`` from step 6 (progress 0.5) on; 0 keeps ``uv_samples`` throughout."""
+    import numpy as np
+    import torch
+    import trimesh
+
+    import mna.fit as F
+    from mna import config as C
+    from mna.data import make_surface
+
+    s = trimesh.creation.icosphere(subdivisions=3, radius=2.5)
+    surface = make_surface(s.vertices, s.faces)
+    drawn = []
+    real = F.uniform_uv
+
+    def spy(charts, count, generator, batch=1, device="cpu"):
+        uv = real(charts, count, generator, batch, device)
+        drawn.append(tuple(uv.shape))
+        return uv
+
+    monkeypatch.setattr(F, "uniform_uv", spy)
+    for late, want in ((700, [300] * 5 + [700] * 5), (0, [300] * 10)):
+        cfg = C.tiny()
+        cfg.model.charts, cfg.uv_samples, cfg.late_uv_samples = 2, 300, late
+        cfg.steps, cfg.lr_decay_start = 10, 0.5
+        fitter = F.Fitter(cfg.validate(), surface, torch.device("cpu"))
+        drawn.clear()
+        while not fitter.done():
+            fitter.train_step()
+        assert [shape[2] for shape in drawn] == want
+        assert all(shape[0] == 2 for shape in drawn)
+    assert np.isfinite(fitter.model.chart(real(2, 10, torch.Generator(), 1, "cpu")).x.detach().numpy()).all()
+
+
+def test_late_uv_samples_must_be_a_count():
+    import pytest as _pytest
+
+    from mna import config as C
+    from mnacore.errors import MnaError
+
+    cfg = C.tiny()
+    cfg.late_uv_samples = -1
+    with _pytest.raises(MnaError, match="late_uv_samples"):
+        cfg.validate()
