@@ -36,6 +36,10 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    pay, that halving is quarter-turned too and kept when it gains ``cfg.pack_cut_gain`` over
    the result: the gain a halving must buy, measured as the layouts will be delivered (spot:
    0.582 -> 0.627, one more island; genus2's last halving gains 0.016 and is not kept).
+4. **Two cuts at once** (:func:`_paired_halvings`), where the result is still below
+   ``cfg.pack_target`` after a round in which no single halving paid: some cuts pay only in
+   pairs (two like parts halved one at a time keep the atlas's shape), so even halvings are
+   tried two at a time, each still buying what it costs.
 
 Every candidate (halving x mode) is first packed once into an unbounded atlas
 (:func:`texture.scale_search.estimate_layouts`, one xatlas call); only the
@@ -244,9 +248,11 @@ def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict
     return best
 
 
-def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) -> list[tuple[list[Island], dict]]:
+def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool,
+              middle_only: bool = False) -> list[tuple[list[Island], dict]]:
     """Every halving tried this round: (islands after it, its description). ``first_seam``:
-    halvings of parts that flattened as one island (:func:`may_halve`), else of the others."""
+    halvings of parts that flattened as one island (:func:`may_halve`), else of the others;
+    ``middle_only``: the even halvings only (:func:`_paired_halvings`)."""
     part, per_comp = island_parts(islands, comp)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
     out = []
@@ -257,7 +263,7 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool) ->
             continue
         adj = face_adjacency(islands[k].xyz, islands[k].faces)  # once for its six halvings
         for along in (False, True):
-            for where, cuts in zip(("middle", "low_quarter", "high_quarter"), PACK_CUTS):
+            for where, cuts in zip(("middle", "low_quarter", "high_quarter")[:1 if middle_only else 3], PACK_CUTS):
                 halved = halve_across(islands[k], along, cuts, adj)
                 if halved is not None:
                     out.append((islands[:k] + islands[k + 1:] + halved[0],
@@ -344,6 +350,43 @@ def _quarter_turned(islands: list[Island], cfg, cache: dict, floor: float) -> _P
     return _best_packed(layouts, [FIXED_TURNS] * len(layouts), cfg, cache, floor)
 
 
+def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, ranked: list[Ranked],
+                     floor: float) -> tuple[_Packed, list[dict]] | None:
+    """Two halvings at once, for the islands where no single one paid: the best packing of
+    a layout cut twice that gains what both cuts must buy over ``floor`` (each a first seam or
+    an ordinary cut, as :func:`_halvings` makes them), with its two descriptions; else None.
+
+    One cut can leave the atlas's shape as it was, so that its gain shows only with a second:
+    two like parts (two tori unrolled as strips lie stacked 2:1 however one is halved: 0.40,
+    both halved 0.69), or an island whose halves are each as wide as the whole (an open
+    cone's sector: 0.38, 0.41 halved once, 0.65 twice). Such a first cut halves an island
+    evenly (two like halves side by side keep the whole's aspect), so the first cuts are the
+    middle ones of the round that fell short (``ranked``: its ordinary and first-seam
+    candidates; a single cut's guess cannot rank them, as their gain shows only in pairs):
+    at most two axes of ``PACK_CUT_ISLANDS`` islands; each layout they leave is halved evenly
+    again (the second cut of such a pair is the even one too), and the pairs are guessed and
+    searched like one round's halvings."""
+    firsts = [c for cands, _ in ranked for c in cands if c[1]["at"] == "middle"]
+    pairs = [(c, [first, d]) for layout, first in firsts for seam in (False, True)
+             for c, d in _halvings(layout, comp, cfg, seam, middle_only=True)]
+    if not pairs:
+        return None
+    guesses = []
+    tol = guess_tolerance(islands, cfg)
+    for m in HALVING_MODES:
+        arrays = [outline_arrays(turned(c, PACK_MODES[m]), cache, tolerance=tol) for c, _ in pairs]
+        est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=PACK_MODES[m][1])
+        guesses += [(e.utilization, j, m) for j, e in enumerate(est) if e is not None]
+    guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
+    best = None
+    for _, j, m in guesses[:PACK_SEARCHED]:
+        need = floor + sum(cfg.pack_first_seam_gain if d["first_seam"] else cfg.pack_cut_gain for d in pairs[j][1])
+        got = _best_packed([pairs[j][0]], [m], cfg, cache, need)
+        if got is not None and got.utilization >= need and (best is None or got.utilization > best[0].utilization):
+            best = (got, pairs[j][1])
+    return best
+
+
 def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
     connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig`."""
@@ -354,6 +397,7 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
                                                   padding=cfg.padding), {"mode": 0, "halvings": []})
     stats = {"utilization_uncut": best.utilization, "halvings": []}
     fell_short = None  # the ordinary round at which the rounds ended, its halving not paying
+    first: Ranked = ([], [])
     for _ in range(cfg.pack_max_cuts):
         if best.utilization >= cfg.pack_target:
             break
@@ -369,6 +413,7 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         best = got[0]
         stats["halvings"].append({**got[1], "utilization": best.utilization})
     stats["utilization_turned_as_xatlas"] = best.utilization
+    cut = best  # the rounds' layout, on which their last rankings were made
     if len(best.islands) > 1:
         best = _quarter_turned(best.islands, cfg, cache, best.utilization) or best
     if fell_short is not None and best.utilization < cfg.pack_target:
@@ -380,5 +425,11 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         if turned_halving is not None:
             best = turned_halving
             stats["halvings"].append({**missed[1], "utilization": best.utilization, "after_quarter_turns": True})
+    if (fell_short is not None and best.utilization < cfg.pack_target
+            and len(stats["halvings"]) + 2 <= cfg.pack_max_cuts):
+        pair = _paired_halvings(cut.islands, comp, cfg, cache, [fell_short, first], best.utilization)
+        if pair is not None:
+            best = _quarter_turned(pair[0].islands, cfg, cache, pair[0].utilization) or pair[0]
+            stats["halvings"] += [{**d, "utilization": best.utilization, "paired": True} for d in pair[1]]
     stats["mode"] = best.mode
     return LayoutChoice(best.placed, _whole_islands(best.placed, best.index, best.packing), stats)

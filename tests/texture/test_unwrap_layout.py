@@ -208,3 +208,42 @@ def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned():
     strict = choose_layout([comb, speck], comp, UnwrapConfig(resolution=512, padding=4, pack_cut_gain=0.08))
     assert len(strict.islands) == 3 and not any(h.get("after_quarter_turns") for h in strict.stats["halvings"])
     assert strict.packing.utilization < 0.6
+
+
+def _two_strips(cells: int = 24) -> tuple[list[Island], np.ndarray]:
+    """Two like 6 x 1 strips, each the only island of its own part."""
+    a = _grid_island(cells, 4, 0.25)
+    b = _grid_island(cells, 4, 0.25)
+    b = Island(b.faces, b.uv, b.xyz + [0.0, 5.0, 0.0], b.work_faces + len(a.faces), b.work_vertex + len(a.uv), 1)
+    comp = np.repeat([0, 1], len(a.faces))
+    return [a, b], comp
+
+
+def test_two_cuts_that_pay_only_together_are_made_together():
+    """Two 6 x 1 strips stack as 6 x 2 in a 6 x 6 square (utilisation about a third); halving
+    one leaves the stack 6 wide (no gain), halving both gives four 3 x 1 strips that stack as
+    3 x 4 in a 4 x 4 square (about 0.75). Each cut is a part's first seam, so the pair must
+    buy twice ``pack_first_seam_gain``; with room for one cut only, no cut is made."""
+    islands, comp = _two_strips()
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    plain = choose_layout(islands, comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=0))
+    one = choose_layout(islands, comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=1))
+    got = choose_layout(islands, comp, cfg)
+    assert plain.packing.utilization < 0.4 and len(one.islands) == 2 and one.stats["halvings"] == []
+    assert len(got.islands) == 4 and got.packing.utilization > 0.6
+    assert got.packing.utilization >= plain.packing.utilization + 2 * cfg.pack_first_seam_gain
+    halvings = got.stats["halvings"]
+    assert [(h["paired"], h["first_seam"], h["at"]) for h in halvings] == [(True, True, "middle")] * 2
+    assert [h["cut_length"] for h in halvings] == pytest.approx([1.0, 1.0])  # straight across the 1-wide strips
+    uv, faces, island = island_arrays(got.islands)
+    assert (signed_areas(got.packing.uv, faces) > 0).all()
+    assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
+    work = np.sort(np.concatenate([isl.work_faces for isl in got.islands]))
+    assert np.array_equal(work, np.arange(len(comp)))
+
+
+def test_a_pair_must_buy_what_both_cuts_cost():
+    """The same strips with a first seam worth more than half the pair's gain: no pair."""
+    islands, comp = _two_strips()
+    got = choose_layout(islands, comp, UnwrapConfig(resolution=512, padding=4, pack_first_seam_gain=0.25))
+    assert len(got.islands) == 2 and got.stats["halvings"] == []
