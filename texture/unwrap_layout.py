@@ -358,8 +358,8 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
 
     One cut can leave the atlas's shape as it was, so that its gain shows only with a second:
     two like parts (two tori unrolled as strips lie stacked 2:1 however one is halved: 0.40,
-    both halved 0.69), or an island whose halves are each as wide as the whole (an open
-    cone's sector: 0.38, 0.41 halved once, 0.65 twice). Such a first cut halves an island
+    both halved 0.76 as delivered), or an island whose halves are each as wide as the whole
+    (an open cone's sector: 0.38, 0.41 halved once, 0.67 twice). Such a first cut halves an island
     evenly (two like halves side by side keep the whole's aspect), so the first cuts are the
     middle ones of the round that fell short (``ranked``: its ordinary and first-seam
     candidates; a single cut's guess cannot rank them, as their gain shows only in pairs):
@@ -425,11 +425,13 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         if turned_halving is not None:
             best = turned_halving
             stats["halvings"].append({**missed[1], "utilization": best.utilization, "after_quarter_turns": True})
-    if (fell_short is not None and best.utilization < cfg.pack_target
-            and len(stats["halvings"]) + 2 <= cfg.pack_max_cuts):
+    # the rounds' own cuts: a pair is made on their layout (``cut``), in place of a missed
+    # halving kept above
+    made = [h for h in stats["halvings"] if not h.get("after_quarter_turns")]
+    if fell_short is not None and best.utilization < cfg.pack_target and len(made) + 2 <= cfg.pack_max_cuts:
         pair = _paired_halvings(cut.islands, comp, cfg, cache, [fell_short, first], best.utilization)
         if pair is not None:
             best = _quarter_turned(pair[0].islands, cfg, cache, pair[0].utilization) or pair[0]
-            stats["halvings"] += [{**d, "utilization": best.utilization, "paired": True} for d in pair[1]]
+            stats["halvings"] = made + [{**d, "utilization": best.utilization, "paired": True} for d in pair[1]]
     stats["mode"] = best.mode
     return LayoutChoice(best.placed, _whole_islands(best.placed, best.index, best.packing), stats)
