@@ -281,17 +281,24 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     """Every halving this round (:func:`_halvings`), each guessed in :data:`HALVING_MODES` by
     one unbounded pack, and the best guesses."""
     cands = _halvings(islands, comp, cfg, first_seam)
-    if not cands:
-        return cands, []
-    guesses = []  # (guessed utilisation, candidate, mode)
+    return cands, _best_guesses([c for c, _ in cands], islands, cfg, cache)
+
+
+def _best_guesses(layouts: list[list[Island]], islands: list[Island], cfg, cache: dict) -> list[tuple[int, int]]:
+    """The ``PACK_SEARCHED`` best (layout index, mode index) of ``layouts``, each guessed in
+    :data:`HALVING_MODES` by one unbounded pack of its outlines, simplified at the tolerance
+    of the uncut ``islands``."""
+    if not layouts:
+        return []
+    guesses = []  # (guessed utilisation, layout, mode)
     tol = guess_tolerance(islands, cfg)
     for m in HALVING_MODES:
         mode = PACK_MODES[m]
-        arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c, _ in cands]
+        arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c in layouts]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
         guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
-    return cands, [(i, m) for _, i, m in guesses[:PACK_SEARCHED]]
+    return [(i, m) for _, i, m in guesses[:PACK_SEARCHED]]
 
 
 def _best_halving(ranked: Ranked, cfg, floor: float, cache: dict) -> tuple[_Packed, dict] | None:
@@ -369,17 +376,8 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     firsts = [c for cands, _ in ranked for c in cands if c[1]["at"] == "middle"]
     pairs = [(c, [first, d]) for layout, first in firsts for seam in (False, True)
              for c, d in _halvings(layout, comp, cfg, seam, middle_only=True)]
-    if not pairs:
-        return None
-    guesses = []
-    tol = guess_tolerance(islands, cfg)
-    for m in HALVING_MODES:
-        arrays = [outline_arrays(turned(c, PACK_MODES[m]), cache, tolerance=tol) for c, _ in pairs]
-        est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=PACK_MODES[m][1])
-        guesses += [(e.utilization, j, m) for j, e in enumerate(est) if e is not None]
-    guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
     best = None
-    for _, j, m in guesses[:PACK_SEARCHED]:
+    for j, m in _best_guesses([c for c, _ in pairs], islands, cfg, cache):
         need = floor + sum(cfg.pack_first_seam_gain if d["first_seam"] else cfg.pack_cut_gain for d in pairs[j][1])
         got = _best_packed([pairs[j][0]], [m], cfg, cache, need)
         if got is not None and got.utilization >= need and (best is None or got.utilization > best[0].utilization):
