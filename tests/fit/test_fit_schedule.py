@@ -1,9 +1,16 @@
-"""The learning-rate schedule: constant, then a cosine down to the final fraction."""
+"""The learning-rate schedule (constant, then a cosine down to the final fraction) and the UV samples that follow it."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
+import torch
+import trimesh
 
+import mna.fit as F
+from mna import config as C
+from mna.data import make_surface
 from mna.fit import lr_factor
+from mnacore.errors import MnaError
 
 
 def test_constant_before_decay_start():
@@ -23,14 +30,6 @@ def test_no_decay_when_start_is_one():
 def test_late_uv_samples_start_with_the_decay(monkeypatch):
     """A 10-step fit decaying from half way draws ``uv_samples`` per chart for steps 1-5 and
     ``late_uv_samples`` from step 6 (progress 0.5) on; 0 keeps ``uv_samples`` throughout."""
-    import numpy as np
-    import torch
-    import trimesh
-
-    import mna.fit as F
-    from mna import config as C
-    from mna.data import make_surface
-
     s = trimesh.creation.icosphere(subdivisions=3, radius=2.5)
     surface = make_surface(s.vertices, s.faces)
     drawn = []
@@ -56,12 +55,7 @@ def test_late_uv_samples_start_with_the_decay(monkeypatch):
 
 
 def test_late_uv_samples_must_be_a_count():
-    import pytest as _pytest
-
-    from mna import config as C
-    from mnacore.errors import MnaError
-
     cfg = C.tiny()
     cfg.late_uv_samples = -1
-    with _pytest.raises(MnaError, match="late_uv_samples"):
+    with pytest.raises(MnaError, match="late_uv_samples"):
         cfg.validate()

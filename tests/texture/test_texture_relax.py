@@ -5,8 +5,20 @@ import numpy as np
 import pytest
 
 from mnacore.grid import grid_faces
+from texture.flatten import euler_characteristic
 from texture.raster import coverage_count
-from texture.relax import RelaxConfig, boundary_edges, crossing_edges, energy_excess, relax_island, relax_islands
+from texture.relax import (
+    RelaxConfig,
+    boundary_edges,
+    crossing_edges,
+    energy_excess,
+    holes_run_clockwise,
+    is_injective,
+    relax_island,
+    relax_islands,
+)
+from texture.unwrap import UnwrapConfig
+from texture.unwrap_islands import HoledRule, Island, _holed, audit_islands, overlaps_itself
 
 
 def _signed_areas(uv, faces):
@@ -225,8 +237,6 @@ def _flap_annulus(h=0.5):
 
 
 def test_hole_running_counter_clockwise_is_an_overlap_flips_and_crossings_miss():
-    from texture.flatten import euler_characteristic
-    from texture.relax import holes_run_clockwise, is_injective
 
     xyz, faces = _flap_annulus()
     uv = xyz[:, :2]
@@ -243,7 +253,6 @@ def test_hole_running_counter_clockwise_is_an_overlap_flips_and_crossings_miss()
 
 
 def test_a_holed_region_whose_conformal_map_laps_over_a_hole_is_cut_instead():
-    from texture.unwrap_islands import HoledRule, _holed
 
     xyz, faces = _flap_annulus()
     rule = HoledRule(within=10.0, relax=RelaxConfig(iterations=0), max_faces=10**6)
@@ -260,8 +269,6 @@ def test_a_holed_region_whose_conformal_map_laps_over_a_hole_is_cut_instead():
 
 
 def test_the_audit_flattens_again_an_island_that_overlaps_itself():
-    from texture.unwrap import UnwrapConfig
-    from texture.unwrap_islands import Island, audit_islands, overlaps_itself
 
     xyz, faces = _flap_annulus()
     lapped = Island(faces, xyz[:, :2].copy(), xyz, np.arange(len(faces)), np.arange(len(xyz)), 0)
