@@ -44,9 +44,11 @@ def look_at(origin, target, up) -> np.ndarray:
 
 
 def material_bitmap(filename: str) -> dict:
-    """Diffuse BSDF whose albedo is an image file (8-bit sRGB decoded by Mitsuba), repeated."""
+    """Diffuse BSDF whose albedo is an image file (8-bit sRGB decoded by Mitsuba), an atlas:
+    clamped at its edge as the exported GLB declares (:data:`texture.export.ATLAS_SAMPLER`),
+    so an island at the atlas border never takes colour from the opposite border."""
     return {"type": "diffuse", "reflectance": {"type": "bitmap", "filename": filename,
-                                                "filter_type": "bilinear", "wrap_mode": "repeat"}}
+                                                "filter_type": "bilinear", "wrap_mode": "clamp"}}
 
 
 def material_procedural_checker(frequency: float, colors) -> dict:

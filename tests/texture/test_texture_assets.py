@@ -9,7 +9,7 @@ from texture_helpers import assert_glb_validates, glb_attribute, glb_json
 from mnacore.grid import grid_faces
 from mnacore.uvmesh import make_uv_mesh, weld_ids
 from texture.clip import SNAP_FRACTION, clip_mesh
-from texture.export import ROUGHNESS, export_textured, read_back
+from texture.export import ATLAS_SAMPLER, ROUGHNESS, export_textured, read_back
 from texture.harness import measure
 from texture.layouts import prepare, unmirrored
 from texture.normals import shading_normals
@@ -39,6 +39,26 @@ def test_glb_material_is_matte_plastic_and_single_sided_when_closed(sphere_expor
     assert mat.get("doubleSided", False) is False  # closed: back faces are never seen
     mtl = open(paths["mtl"]).read()
     assert "Pm 0.0" in mtl and "Ks 0.0 0.0 0.0" in mtl
+
+
+def test_glb_atlas_is_clamped_at_its_edge_and_views_declare_their_targets(sphere_export):
+    """The texture is sampled clamped to the edge (glTF's default, REPEAT, would blend the
+    atlas's opposite border into islands that lie against this one) and mip-mapped; every
+    vertex attribute's view is an ARRAY_BUFFER, the indices' an ELEMENT_ARRAY_BUFFER."""
+    _, paths = sphere_export
+    doc = glb_json(paths["glb"])
+    (tex,) = doc["textures"]
+    sampler = doc["samplers"][tex["sampler"]]
+    assert sampler["wrapS"] == sampler["wrapT"] == 33071  # CLAMP_TO_EDGE
+    assert sampler["magFilter"] == 9729 and sampler["minFilter"] == 9987  # LINEAR, LINEAR_MIPMAP_LINEAR
+    assert sampler == ATLAS_SAMPLER
+    (prim,) = doc["meshes"][0]["primitives"]
+    views = doc["bufferViews"]
+    for name, acc in prim["attributes"].items():
+        assert views[doc["accessors"][acc]["bufferView"]]["target"] == 34962, name
+    assert views[doc["accessors"][prim["indices"]]["bufferView"]]["target"] == 34963
+    image_view = views[doc["images"][0]["bufferView"]]
+    assert "target" not in image_view  # an image is not vertex data
 
 
 def test_open_surface_is_double_sided(tmp_path):

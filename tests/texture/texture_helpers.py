@@ -95,7 +95,8 @@ def icosphere() -> trimesh.Trimesh:
 
 
 def assert_glb_validates(path) -> None:
-    """The Khronos glTF validator reports no errors and no warnings (skips where it is absent)."""
+    """The Khronos glTF validator reports no errors, no warnings and no hints (skips where it
+    is absent)."""
     from texture import gltf_validator
 
     reason = gltf_validator.available()
@@ -103,6 +104,7 @@ def assert_glb_validates(path) -> None:
         pytest.skip(reason)
     report = gltf_validator.validate(path)
     assert report["numErrors"] == 0 and report["numWarnings"] == 0, report["messages"][:5]
+    assert report["numHints"] == 0, report["messages"][:5]
 
 
 def glb_json(path) -> dict:
