@@ -146,18 +146,59 @@ def _one_piece(adj, mask: np.ndarray) -> bool:
 #: would zigzag up and down their long edges, adding many times the seam a straight cut
 #: would. An edge path across a fair triangulation is at most about 1.3x its straight line.
 ZIGZAG = 2.0
-#: cut positions tried by :func:`split_long_islands`: these fractions of the island's area
-#: lie before the cut along its principal axis.
+#: :func:`cut_in_pieces`'s cut lengths this close (relative) are equal, and the tie goes to
+#: the position nearest the even one: a cut 1 % shorter saves 1 % of one cut's seam, while
+#: moving a piece's end lengthens a row of the stack. Across a strip of even width the cuts
+#: differ only by the rounding of the input's float32 coordinates (3e-5 relative on a 100 x 1
+#: strip of 0.0137 edges stored 5 away from the origin), which took pieces to 11 and 14 of
+#: an even 12.5. (The packing's halvings, compared by their packings, keep exact ties.)
+TIE = 0.01
+#: cut positions tried by a halving: these fractions of the island's area lie before the cut
+#: along its principal axis (:func:`cut_in_pieces` scales them to its pieces).
 LONG_CUTS = np.linspace(0.3, 0.7, 9)
 
 
-def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> tuple[list[Island], float] | None:
+#: where :func:`cut_in_pieces` tries each cut, in pieces from its even position: within 10 %
+#: of a piece, so that the pieces stack as rows of about one length (the atlas's side is the
+#: longest row's; with a halving's window, 40 % either side, a 2.0 x 0.02 ribbon's shortest
+#: cuts made pieces of 0.125-0.4), and densely enough that a mesh a dozen faces long a piece
+#: still offers cuts along its edges near the even position
+PIECE_CUTS = np.linspace(-0.1, 0.1, 17)
+
+
+def cut_in_pieces(isl: Island, n: int) -> tuple[list[Island], float]:
+    """(``isl`` cut across its principal axis into up to ``n`` pieces of about equal area, the
+    cuts' 3D length). Cut ``k`` is a :func:`halve_across` of what is left that ends the
+    pieces so far at ``k / n`` of the island's area (so that a piece the mesh's edges made a
+    little short is made up by the next, not passed on to the last), at the shortest cut
+    among :data:`PIECE_CUTS` of that position (ties: the nearest). Where no cut works, the
+    pieces made so far and the rest are returned."""
+    pieces, length, rest = [], 0.0, isl
+    total = float(triangle_areas(isl.xyz, isl.faces).sum())
+    done = 0.0  # area of the pieces made
+    for k in range(1, n):
+        left = total - done
+        at = (k * total / n - done) / left  # the position k / n as a fraction of what is left
+        spread = PIECE_CUTS * (total / n) / left
+        got = halve_across(rest, cuts=at + spread, centre=at, tie=TIE)
+        if got is None:
+            break
+        (first, rest), cut = got
+        pieces.append(first)
+        length += cut
+        done += float(triangle_areas(first.xyz, first.faces).sum())
+    return pieces + [rest], length
+
+
+def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
+                 centre: float = 0.5, tie: float = 0.0) -> tuple[list[Island], float] | None:
     """(the island cut in two, the cut's 3D length), or None where no cut works.
 
     The cut runs across the island's principal UV axis (``along``: along it, i.e. across the
     minor axis), along mesh edges, at the position (among ``cuts``: the fraction of the
-    island's 3D area before the cut) with the shortest cut (ties: the more even halves) whose
-    two halves are each one piece. The halves keep their UVs: parts of a flip-free,
+    island's 3D area before the cut) with the shortest cut (ties, lengths within ``tie`` of
+    each other relatively: the one nearest ``centre``, by default the more even halves) whose
+    two halves are each one piece; the first half is the one before the cut. The halves keep their UVs: parts of a flip-free,
     overlap-free island stay so, and the input's faces are not changed (an unwrap may only
     cut along edges). ``adj``: the island's face adjacency, when the caller has it."""
     from .regions import face_adjacency
@@ -170,7 +211,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
     cum = np.cumsum(area[order]) / area.sum()
     adj = face_adjacency(isl.xyz, isl.faces) if adj is None else adj
     best = None
-    for q in sorted(cuts, key=lambda q: abs(q - 0.5)):  # equal cuts: the more even one
+    for q in sorted(cuts, key=lambda q: abs(q - centre)):  # equal cuts: the one nearest the centre
         lo = np.zeros(len(isl.faces), bool)
         lo[order[:int(np.searchsorted(cum, q)) + 1]] = True
         if lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
@@ -181,7 +222,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None) -> 
         cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
         if cut > ZIGZAG * width:  # no line of the mesh runs across here (long thin faces)
             continue
-        if best is None or cut < best[0]:
+        if best is None or cut < best[0] * (1.0 - tie):  # a tie keeps the nearer
             best = (cut, lo)
     if best is None:
         return None
@@ -213,15 +254,21 @@ LONE_LONG = 2.0
 
 
 def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[list[Island], dict]:
-    """Halve (:func:`halve_across`) islands too long to pack densely, longest first.
+    """Cut islands too long to pack densely into pieces the atlas can hold, longest first.
 
     A square atlas that holds all islands' UV area at utilisation ``cfg.long_fill`` has the
     side ``S = sqrt(area / long_fill)``; an island longer than ``S`` along its principal axis
     forces a lower utilisation whatever the packer does (a strip around a torus's tube set
-    the atlas's width, utilisation 0.22). Such an island is halved across that axis at its
-    narrowest cut; its UVs are kept, so distortion, flips and overlap do not change; only a
-    seam and an island are added. At most ``cfg.long_max_splits`` halvings, each allowed by
-    :func:`may_halve`, or of a part's one island longer than ``LONE_LONG`` times the side.
+    the atlas's width, utilisation 0.22). Such an island, ``L`` long, is cut across that axis
+    into ``ceil(L / S)`` pieces of about equal area (:func:`cut_in_pieces`), each at its
+    narrowest cut near its even position: equal pieces of a strip stack as rows of one
+    length, which halving the longest piece again and again does not give (a 100:1 ribbon:
+    pieces of 1/2, 1/4 and 1/8 of it, rows of four lengths, utilisation 0.24). The UVs are
+    kept, so distortion, flips and overlap do not change; only seams and islands are added.
+    At most ``cfg.long_max_splits`` islands are cut, each allowed by :func:`may_halve` (a part
+    within ``cfg.long_max_islands`` islands is never taken past it: fewer, longer pieces
+    then), or a part's one island longer than ``LONE_LONG`` times the side.
+    ``long_islands_split`` counts the cuts (islands added).
     """
     st = {"long_islands_split": 0}
     if cfg.long_max_splits <= 0 or not islands:
@@ -245,13 +292,19 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
         c = int(part[k])
         if length[k] <= 1.0:
             break
-        halved = halve_across(islands[k])
-        if halved is None:
+        n = int(np.ceil(_principal_extent(islands[k].uv)[0] / side - 1e-9))
+        if per_comp[c] <= cfg.long_max_islands:  # within the island cap: never past it
+            n = min(n, cfg.long_max_islands - int(per_comp[c]) + 1)
+        pieces, _ = cut_in_pieces(islands[k], max(n, 2))
+        if len(pieces) < 2:
             skip.add(id(islands[k]))
             continue
-        islands = islands[:k] + islands[k + 1:] + halved[0]
-        part = np.concatenate([np.delete(part, k), [c, c]])
-        per_comp[c] += 1
-        st["long_islands_split"] += 1
+        # the pieces are as even as the mesh's edges allow: one a column over the side is not
+        # cut again (a 16 x 1 strip at side 5.8: 5 + 5 + 6, not 5 + 5 + 3 + 3)
+        skip.update(id(p) for p in pieces)
+        islands = islands[:k] + islands[k + 1:] + pieces
+        part = np.concatenate([np.delete(part, k), [c] * len(pieces)])
+        per_comp[c] += len(pieces) - 1
+        st["long_islands_split"] += len(pieces) - 1
     st["atlas_side"] = side
     return islands, st

@@ -123,9 +123,9 @@ class UnwrapConfig:
     """Most halvings for ``target_distortion``."""
     long_fill: float = 0.6
     """Islands longer than the side of a square holding all islands at this utilisation are
-    halved across their length (:func:`texture.halving.split_long_islands`)."""
+    cut across their length into even pieces (:func:`texture.halving.split_long_islands`)."""
     long_max_splits: int = 4
-    """Most such halvings (0 = off)."""
+    """Most islands cut so, each into as many pieces as its length asks (0 = off)."""
     long_max_islands: int = 8
     """No such halving (nor a packing halving) takes a connected component from within this
     many islands past it (a part already past it is halved on gain alone: :func:`texture.halving.may_halve`)."""

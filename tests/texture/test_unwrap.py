@@ -6,6 +6,8 @@ face), so no fit runs here; tests/texture/test_unwrap_cli.py runs a tiny fit end
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
@@ -76,8 +78,6 @@ def island_topology(res) -> list[tuple[int, int]]:
 
 def test_cylinder_unwraps_isometrically_with_one_straight_seam():
     mesh = cylinder()
-    from dataclasses import replace
-
     # without halving long islands (nor for packing, texture.unwrap_layout): one island, one seam
     res = unwrap_mesh(mesh.vertices, mesh.faces, cylinder_chart(mesh), replace(FAST, long_max_splits=0, pack_max_cuts=0))
     check_faithful(mesh, res)
@@ -403,11 +403,11 @@ def _flat_island(nx: int, ny: int, x0: float = 0.0, first_face: int = 0):
     return Island(faces, uv, xyz, first_face + np.arange(len(faces)), np.arange(len(uv)), 0)
 
 
-def test_islands_too_long_to_pack_densely_are_halved_with_their_uvs_kept():
+def test_islands_too_long_to_pack_densely_are_cut_in_even_pieces_with_their_uvs_kept():
     """A 16 x 1 strip next to a 2 x 2 square: the square atlas holding their area (20) at
-    utilisation 0.6 has side 5.8, so the strip is halved across its length (cut length 1),
-    then its halves (8 long) once more; each piece keeps its faces' UV triangles. With a
-    looser fill (side >= 16) nothing is cut."""
+    utilisation 0.6 has side 5.8, so the strip is cut across its length into ceil(16 / 5.8)
+    = 3 pieces, as even as its unit columns allow (5 + 5 + 6, two cuts of length 1); each
+    piece keeps its faces' UV triangles. With a looser fill (side >= 16) nothing is cut."""
     from texture.halving import _principal_extent, split_long_islands
 
     strip, square = _flat_island(16, 1), _flat_island(2, 2, x0=20.0, first_face=32)
@@ -417,11 +417,11 @@ def test_islands_too_long_to_pack_densely_are_halved_with_their_uvs_kept():
     out, st = split_long_islands([strip, square], comp, cfg)
     side = np.sqrt(20 / cfg.long_fill)
     assert st["atlas_side"] == pytest.approx(side)
-    assert st["long_islands_split"] == 3 and len(out) == 5
+    assert st["long_islands_split"] == 2 and len(out) == 4
     lengths = sorted(_principal_extent(isl.uv)[0] for isl in out)
-    # the strip in quarters (each cut across it, at its middle); the square (length 2 to 2.83,
-    # its principal axis is any direction) untouched
-    assert lengths[-1] <= side and lengths[1:] == pytest.approx([4, 4, 4, 4], abs=1e-9)
+    # the strip in thirds (each cut across it); the square (length 2 to 2.83, its principal
+    # axis is any direction) untouched
+    assert lengths[1:] == pytest.approx([5, 5, 6], abs=1e-9)
     assert 2 - 1e-9 <= lengths[0] <= np.sqrt(8) + 1e-9
     got = np.concatenate([isl.work_faces for isl in out])
     assert sorted(got.tolist()) == list(range(40))  # every face once
@@ -440,8 +440,8 @@ def test_islands_too_long_to_pack_densely_are_halved_with_their_uvs_kept():
 
 def test_a_part_of_one_island_is_halved_for_length_only_when_it_is_a_strip():
     """A part that flattened as one island keeps its fewest seams unless it is longer than
-    ``LONE_LONG`` atlas sides: a 40 x 1 strip alone (side at fill 0.6: 8.2) is halved, into
-    pieces no longer than that bound; a 12 x 4 island alone (longer than the side, 8.9, but
+    ``LONE_LONG`` atlas sides: a 40 x 1 strip alone (side at fill 0.6: 8.2) is cut, into five
+    even pieces no longer than the side; a 12 x 4 island alone (longer than the side, 8.9, but
     not a strip) is left whole. Each on its own part (component)."""
     from texture.halving import LONE_LONG, _principal_extent, split_long_islands
 
@@ -449,13 +449,41 @@ def test_a_part_of_one_island_is_halved_for_length_only_when_it_is_a_strip():
     strip = _flat_island(40, 1)
     out, st = split_long_islands([strip], np.zeros(80, np.int64), cfg)
     side = np.sqrt(40 / cfg.long_fill)
-    assert st["long_islands_split"] >= 1 and len(out) == 1 + st["long_islands_split"]
+    assert st["long_islands_split"] == 4 and len(out) == 5  # ceil(40 / 8.2) even pieces
+    assert [_principal_extent(isl.uv)[0] for isl in out] == pytest.approx([8] * 5, abs=1e-9)
     assert max(_principal_extent(isl.uv)[0] for isl in out) <= LONE_LONG * side + 1e-9
     assert sorted(np.concatenate([isl.work_faces for isl in out]).tolist()) == list(range(80))
     wide = _flat_island(12, 4)
     assert _principal_extent(wide.uv)[0] > np.sqrt(48 / cfg.long_fill)  # past the plain rule's bound
     out, st = split_long_islands([wide], np.zeros(96, np.int64), cfg)
     assert st["long_islands_split"] == 0 and len(out) == 1
+
+
+def test_a_strip_is_cut_into_even_pieces_that_stack():
+    """A 100 x 1 strip alone (a ribbon, a belt, a tube unrolled): the atlas side at fill 0.6
+    is 12.9, so it is cut into ceil(100 / 12.9) = 8 pieces (also the island cap), each 12 or
+    13 columns (the even 12.5 on the mesh's edges; halving the longest piece again and again
+    gave 11, 14, 25, 25, 25), which stack as rows: packed, at least 0.55 of the atlas is
+    used (8 rows of 12.5 x 1 fill at most 0.64 of a square; the halvings gave 0.16). Its 3D
+    positions are turned and stored as float32, as a PLY stores them: cuts across it then
+    differ in their last bits, which must not move a piece's end."""
+    from scipy.spatial.transform import Rotation
+
+    from texture.halving import _principal_extent, split_long_islands
+    from texture.unwrap_layout import choose_layout
+
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    comp = np.zeros(200, np.int64)
+    strip = _flat_island(100, 1)
+    turn = Rotation.from_rotvec([0.3, -0.7, 0.5]).as_matrix()
+    strip = replace(strip, xyz=(strip.xyz @ turn.T * 0.0137 + 5.0).astype(np.float32).astype(np.float64))
+    out, st = split_long_islands([strip], comp, cfg)
+    assert st["atlas_side"] == pytest.approx(np.sqrt(100 / cfg.long_fill))
+    assert st["long_islands_split"] == 7 and len(out) == cfg.long_max_islands
+    assert sorted(_principal_extent(isl.uv)[0] for isl in out) == pytest.approx([12] * 4 + [13] * 4, abs=1e-9)
+    assert sorted(np.concatenate([isl.work_faces for isl in out]).tolist()) == list(range(200))
+    got = choose_layout(out, comp, cfg)
+    assert len(got.islands) == 8 and got.packing.utilization >= 0.55
 
 
 def _unrolled_tube(rings: int, sectors: int = 32, height: float = 3.0, radius: float = 0.4):
