@@ -254,28 +254,54 @@ LONE_LONG = 2.0
 
 
 def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[list[Island], dict]:
-    """Cut islands too long to pack densely into pieces the atlas can hold, longest first.
+    """Cut islands too long to pack densely, longest first, in even pieces or by halvings:
+    whichever packs better.
 
     A square atlas that holds all islands' UV area at utilisation ``cfg.long_fill`` has the
     side ``S = sqrt(area / long_fill)``; an island longer than ``S`` along its principal axis
     forces a lower utilisation whatever the packer does (a strip around a torus's tube set
-    the atlas's width, utilisation 0.22). Such an island, ``L`` long, is cut across that axis
-    into ``ceil(L / S)`` pieces of about equal area (:func:`cut_in_pieces`), each at its
-    narrowest cut near its even position: equal pieces of a strip stack as rows of one
-    length, which halving the longest piece again and again does not give (a 100:1 ribbon:
-    pieces of 1/2, 1/4 and 1/8 of it, rows of four lengths, utilisation 0.24). The UVs are
-    kept, so distortion, flips and overlap do not change; only seams and islands are added.
-    At most ``cfg.long_max_splits`` islands are cut, each allowed by :func:`may_halve` (a part
+    the atlas's width, utilisation 0.22). Such an island is cut across that axis, two ways
+    (:func:`_cut_long`), and the islands of the one whose first guess
+    (:func:`texture.unwrap_layout.guess_layouts`) packs better are kept:
+
+    - *even*: an island ``L`` long in ``ceil(L / S)`` pieces of about equal area
+      (:func:`cut_in_pieces`), which stack as rows of one length where the island is a
+      straight strip (a 100:1 ribbon: 0.59; halvings left rows of four lengths, 0.24);
+    - *halved*: the longest island halved at its shortest cut within 0.3-0.7 of its area,
+      again and again while one is too long, which packs better where the island is a curved
+      strip, whose even pieces are arcs that do not stack (a Moebius strip: 0.61 halved,
+      0.56 in even pieces).
+
+    The UVs are kept, so distortion, flips and overlap do not change; only seams and islands
+    are added. At most ``cfg.long_max_splits`` islands are cut (each into as many pieces as
+    the way asks; halved: that many halvings), each allowed by :func:`may_halve` (a part
     within ``cfg.long_max_islands`` islands is never taken past it: fewer, longer pieces
     then), or a part's one island longer than ``LONE_LONG`` times the side.
-    ``long_islands_split`` counts the cuts (islands added).
+    ``long_islands_split`` counts the cuts (islands added); ``long_cut`` names the way kept.
     """
     st = {"long_islands_split": 0}
     if cfg.long_max_splits <= 0 or not islands:
         return islands, st
     total = sum(float(np.abs(signed_areas(i.uv, i.faces)).sum()) for i in islands)
     side = float(np.sqrt(total / cfg.long_fill))
+    st["atlas_side"] = side
+    ways = {way: _cut_long(islands, comp, cfg, side, way == "even") for way in ("even", "halved")}
+    if len(ways["even"]) == len(islands) and len(ways["halved"]) == len(islands):
+        return islands, st
+    from .unwrap_layout import guess_layouts  # it packs what this module cuts
+
+    guess = dict(zip(ways, guess_layouts(list(ways.values()), cfg)))
+    way = max(ways, key=lambda w: (guess[w], w == "even"))  # a tie: the even pieces
+    st.update(long_islands_split=len(ways[way]) - len(islands), long_cut=way,
+              long_guess={w: round(float(g), 4) for w, g in guess.items()})
+    return ways[way], st
+
+
+def _cut_long(islands: list[Island], comp: np.ndarray, cfg, side: float, even: bool) -> list[Island]:
+    """The islands with those too long for the atlas's ``side`` cut (:func:`split_long_islands`),
+    in ``even`` pieces or by halvings."""
     part, per_comp = island_parts(islands, comp)
+    per_comp = per_comp.copy()
     skip: set[int] = set()
     def over(isl, p):  # the island's length in units of the longest it may be
         if id(isl) in skip:
@@ -292,19 +318,22 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
         c = int(part[k])
         if length[k] <= 1.0:
             break
-        n = int(np.ceil(_principal_extent(islands[k].uv)[0] / side - 1e-9))
-        if per_comp[c] <= cfg.long_max_islands:  # within the island cap: never past it
-            n = min(n, cfg.long_max_islands - int(per_comp[c]) + 1)
-        pieces, _ = cut_in_pieces(islands[k], max(n, 2))
+        if even:
+            n = int(np.ceil(_principal_extent(islands[k].uv)[0] / side - 1e-9))
+            if per_comp[c] <= cfg.long_max_islands:  # within the island cap: never past it
+                n = min(n, cfg.long_max_islands - int(per_comp[c]) + 1)
+            pieces = cut_in_pieces(islands[k], max(n, 2))[0]
+        else:
+            halved = halve_across(islands[k])
+            pieces = [islands[k]] if halved is None else halved[0]
         if len(pieces) < 2:
             skip.add(id(islands[k]))
             continue
-        # the pieces are as even as the mesh's edges allow: one a column over the side is not
-        # cut again (a 16 x 1 strip at side 5.8: 5 + 5 + 6, not 5 + 5 + 3 + 3)
-        skip.update(id(p) for p in pieces)
+        if even:
+            # the pieces are as even as the mesh's edges allow: one a column over the side is
+            # not cut again (a 16 x 1 strip at side 5.8: 5 + 5 + 6, not 5 + 5 + 3 + 3)
+            skip.update(id(p) for p in pieces)
         islands = islands[:k] + islands[k + 1:] + pieces
         part = np.concatenate([np.delete(part, k), [c] * len(pieces)])
         per_comp[c] += len(pieces) - 1
-        st["long_islands_split"] += len(pieces) - 1
-    st["atlas_side"] = side
-    return islands, st
+    return islands

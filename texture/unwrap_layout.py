@@ -284,6 +284,21 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     return cands, _best_guesses([c for c, _ in cands], islands, cfg, cache)
 
 
+def guess_layouts(layouts: list[list[Island]], cfg, cache: dict | None = None) -> list[float]:
+    """Each layout's first guess (one unbounded pack of its outlines per mode of
+    :data:`HALVING_MODES`, the better kept), simplified at the tolerance of the first layout's
+    islands: how the cut ways of :func:`texture.halving.split_long_islands` are compared."""
+    cache = {} if cache is None else cache
+    tol = guess_tolerance(layouts[0], cfg)
+    best = [0.0] * len(layouts)
+    for m in HALVING_MODES:
+        mode = PACK_MODES[m]
+        arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c in layouts]
+        est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
+        best = [max(b, e.utilization) if e is not None else b for b, e in zip(best, est)]
+    return best
+
+
 def _best_guesses(layouts: list[list[Island]], islands: list[Island], cfg, cache: dict) -> list[tuple[int, int]]:
     """The ``PACK_SEARCHED`` best (layout index, mode index) of ``layouts``, each guessed in
     :data:`HALVING_MODES` by one unbounded pack of its outlines, simplified at the tolerance
