@@ -52,7 +52,8 @@ from mnacore.uvmesh import UVMesh, weld_ids
 from .assign import FAR_TOL, NEAR_TOL, assign_faces, chart_surfaces
 from .borders import shortest_borders
 from .ears import move_ears
-from .halving import refine_islands, split_long_islands
+from .halving import refine_islands
+from .long_islands import split_long_islands
 from .merge import merge_islands
 from .meshprep import prepare_mesh
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
@@ -123,7 +124,7 @@ class UnwrapConfig:
     """Most halvings for ``target_distortion``."""
     long_fill: float = 0.6
     """Islands longer than the side of a square holding all islands at this utilisation are
-    cut across their length into even pieces (:func:`texture.halving.split_long_islands`)."""
+    cut across their length (:func:`texture.long_islands.split_long_islands`)."""
     long_max_splits: int = 4
     """Most islands cut so, each into as many pieces as its length asks (0 = off)."""
     long_max_islands: int = 8

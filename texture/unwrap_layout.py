@@ -287,7 +287,7 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
 def guess_layouts(layouts: list[list[Island]], cfg, cache: dict | None = None) -> list[float]:
     """Each layout's first guess (one unbounded pack of its outlines per mode of
     :data:`HALVING_MODES`, the better kept), simplified at the tolerance of the first layout's
-    islands: how the cut ways of :func:`texture.halving.split_long_islands` are compared."""
+    islands: how the cut ways of :func:`texture.long_islands.split_long_islands` are compared."""
     cache = {} if cache is None else cache
     tol = guess_tolerance(layouts[0], cfg)
     best = [0.0] * len(layouts)

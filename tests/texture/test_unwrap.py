@@ -409,7 +409,8 @@ def test_islands_too_long_to_pack_densely_are_cut_with_their_uvs_kept():
     ceil(16 / 5.8) = 3 even pieces, as even as its unit columns allow (5 + 5 + 6, two cuts),
     or halved and its halves halved again (quarters, three cuts). Each piece keeps its faces'
     UV triangles. With a looser fill (side >= 16) nothing is cut; the island cap holds."""
-    from texture.halving import _cut_long, _principal_extent, split_long_islands
+    from texture.halving import _principal_extent
+    from texture.long_islands import _cut_long, split_long_islands
 
     strip, square = _flat_island(16, 1), _flat_island(2, 2, x0=20.0, first_face=32)
     before = {int(w): uv for isl in (strip, square) for w, uv in zip(isl.work_faces, isl.uv[isl.faces])}
@@ -457,7 +458,7 @@ def test_a_curved_strip_is_halved_where_even_pieces_would_not_stack():
     """A 270-degree arc 0.1 wide, alone: its even pieces are arcs, which do not stack as rows,
     and the halvings' first guess packs better (measured: 0.23 against 0.17), so its cut is
     the halvings'; a straight strip of the same area takes the even pieces."""
-    from texture.halving import split_long_islands
+    from texture.long_islands import split_long_islands
 
     cfg = UnwrapConfig(resolution=512, padding=4)
     arc = _arc(270.0, 0.1)
@@ -474,7 +475,8 @@ def test_a_part_of_one_island_is_halved_for_length_only_when_it_is_a_strip():
     ``LONE_LONG`` atlas sides: a 40 x 1 strip alone (side at fill 0.6: 8.2) is cut, into five
     even pieces no longer than the side; a 12 x 4 island alone (longer than the side, 8.9, but
     not a strip) is left whole. Each on its own part (component)."""
-    from texture.halving import LONE_LONG, _principal_extent, split_long_islands
+    from texture.halving import LONE_LONG, _principal_extent
+    from texture.long_islands import split_long_islands
 
     cfg = UnwrapConfig()
     strip = _flat_island(40, 1)
@@ -500,7 +502,8 @@ def test_a_strip_is_cut_into_even_pieces_that_stack():
     differ in their last bits, which must not move a piece's end."""
     from scipy.spatial.transform import Rotation
 
-    from texture.halving import _principal_extent, split_long_islands
+    from texture.halving import _principal_extent
+    from texture.long_islands import split_long_islands
     from texture.unwrap_layout import choose_layout
 
     cfg = UnwrapConfig(resolution=512, padding=4)
