@@ -62,8 +62,11 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
     side ``S = sqrt(area / long_fill)``; an island longer than ``S`` along its principal axis
     forces a lower utilisation whatever the packer does (a strip around a torus's tube set
     the atlas's width, utilisation 0.22). Such an island is cut across that axis, two ways
-    (:func:`_cut_long`), and the islands of the one whose first guess
-    (:func:`texture.unwrap_layout.guess_layouts`) packs better are kept:
+    (:func:`_cut_long`), and the islands of the one with the shorter cuts are kept unless
+    the other's first guess (:func:`texture.unwrap_layout.guess_layouts`) packs better by
+    ``cfg.pack_cut_gain``, the gain a cut must buy in the packing search (the guesses are
+    rough: limbs' halvings guessed 0.42 against 0.41, and its even pieces, with shorter
+    cuts, ended at 0.58 after the search against the halvings' 0.55):
 
     - *even*: an island ``L`` long in ``ceil(L / S)`` pieces of about equal area
       (:func:`cut_in_pieces`), which stack as rows of one length where the island is a
@@ -78,7 +81,8 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
     the way asks; halved: that many halvings), each allowed by :func:`may_halve` (a part
     within ``cfg.long_max_islands`` islands is never taken past it: fewer, longer pieces
     then), or a part's one island longer than ``LONE_LONG`` times the side.
-    ``long_islands_split`` counts the cuts (islands added); ``long_cut`` names the way kept.
+    ``long_islands_split`` counts the cuts (islands added); ``long_cut`` names the way kept,
+    ``long_guess`` and ``long_cut_length`` give each way's guess and 3D cut length.
     """
     st = {"long_islands_split": 0}
     if cfg.long_max_splits <= 0 or not islands:
@@ -86,19 +90,23 @@ def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[li
     total = sum(float(np.abs(signed_areas(i.uv, i.faces)).sum()) for i in islands)
     side = float(np.sqrt(total / cfg.long_fill))
     st["atlas_side"] = side
-    ways = {way: _cut_long(islands, comp, cfg, side, way == "even") for way in ("even", "halved")}
+    cuts = {way: _cut_long(islands, comp, cfg, side, way == "even") for way in ("even", "halved")}
+    ways = {way: got[0] for way, got in cuts.items()}
     if len(ways["even"]) == len(islands) and len(ways["halved"]) == len(islands):
         return islands, st
     guess = dict(zip(ways, guess_layouts(list(ways.values()), cfg)))
-    way = max(ways, key=lambda w: (guess[w], w == "even"))  # a tie: the even pieces
+    short, other = sorted(ways, key=lambda w: (cuts[w][1], w != "even"))  # a tie: the even pieces
+    way = other if guess[other] >= guess[short] + cfg.pack_cut_gain else short
     st.update(long_islands_split=len(ways[way]) - len(islands), long_cut=way,
-              long_guess={w: round(float(g), 4) for w, g in guess.items()})
+              long_guess={w: round(float(g), 4) for w, g in guess.items()},
+              long_cut_length={w: round(float(c[1]), 4) for w, c in cuts.items()})
     return ways[way], st
 
 
-def _cut_long(islands: list[Island], comp: np.ndarray, cfg, side: float, even: bool) -> list[Island]:
-    """The islands with those too long for the atlas's ``side`` cut (:func:`split_long_islands`),
-    in ``even`` pieces or by halvings."""
+def _cut_long(islands: list[Island], comp: np.ndarray, cfg, side: float, even: bool) -> tuple[list[Island], float]:
+    """(The islands with those too long for the atlas's ``side`` cut (:func:`split_long_islands`),
+    in ``even`` pieces or by halvings; the cuts' 3D length)."""
+    cut_length = 0.0
     part, per_comp = island_parts(islands, comp)
     per_comp = per_comp.copy()
     skip: set[int] = set()
@@ -121,10 +129,10 @@ def _cut_long(islands: list[Island], comp: np.ndarray, cfg, side: float, even: b
             n = int(np.ceil(_principal_extent(islands[k].uv)[0] / side - 1e-9))
             if per_comp[c] <= cfg.long_max_islands:  # within the island cap: never past it
                 n = min(n, cfg.long_max_islands - int(per_comp[c]) + 1)
-            pieces = cut_in_pieces(islands[k], max(n, 2))[0]
+            pieces, cut = cut_in_pieces(islands[k], max(n, 2))
         else:
             halved = halve_across(islands[k])
-            pieces = [islands[k]] if halved is None else halved[0]
+            pieces, cut = ([islands[k]], 0.0) if halved is None else halved
         if len(pieces) < 2:
             skip.add(id(islands[k]))
             continue
@@ -135,4 +143,5 @@ def _cut_long(islands: list[Island], comp: np.ndarray, cfg, side: float, even: b
         islands = islands[:k] + islands[k + 1:] + pieces
         part = np.concatenate([np.delete(part, k), [c] * len(pieces)])
         per_comp[c] += len(pieces) - 1
-    return islands
+        cut_length += cut
+    return islands, cut_length
