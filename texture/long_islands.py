@@ -3,7 +3,8 @@
 A square atlas holds the islands at utilisation ``cfg.long_fill`` only if no island is
 longer than its side; a strip (a tube unrolled whole, a ribbon, a belt) sets the atlas's
 width otherwise. :func:`split_long_islands` cuts such islands (:func:`texture.halving.halve_across`:
-along the input's edges, UVs kept) two ways and keeps the one that packs better.
+along the input's edges, UVs kept) two ways and keeps the one with the shorter cuts unless
+the other packs clearly better.
 """
 from __future__ import annotations
 
@@ -56,7 +57,7 @@ def cut_in_pieces(isl: Island, n: int) -> tuple[list[Island], float]:
 
 def split_long_islands(islands: list[Island], comp: np.ndarray, cfg) -> tuple[list[Island], dict]:
     """Cut islands too long to pack densely, longest first, in even pieces or by halvings:
-    whichever packs better.
+    the shorter cuts, unless the other way packs clearly better.
 
     A square atlas that holds all islands' UV area at utilisation ``cfg.long_fill`` has the
     side ``S = sqrt(area / long_fill)``; an island longer than ``S`` along its principal axis
