@@ -159,9 +159,9 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
     minor axis), along mesh edges, at the position (among ``cuts``: the fraction of the
     island's 3D area before the cut) with the shortest cut (ties, lengths within ``tie`` of
     each other relatively: the one nearest ``centre``, by default the more even halves) whose
-    two halves are each one piece; the first half is the one before the cut. The halves keep their UVs: parts of a flip-free,
-    overlap-free island stay so, and the input's faces are not changed (an unwrap may only
-    cut along edges). ``adj``: the island's face adjacency, when the caller has it."""
+    two halves are each one piece; the first half is the one before the cut. The halves keep
+    their UVs: parts of a flip-free, overlap-free island stay so, and the input's faces are
+    not changed (an unwrap may only cut along edges). ``adj``: the island's face adjacency, when the caller has it."""
     from .regions import face_adjacency
 
     axis = _principal_axis(isl.uv, minor=along)
@@ -198,9 +198,9 @@ def may_halve(islands_in_part: int, cfg) -> bool:
     compact island just over the atlas side costs only a few hundredths of utilisation, less
     than a first seam is worth. Such a part is halved only by the packing search, for
     ``cfg.pack_first_seam_gain`` (:mod:`texture.unwrap_layout`), or for its length where it
-    is a strip (:data:`LONE_LONG`, :mod:`texture.long_islands`). A part already past the cap (its topology or distortion
-    took more islands: a genus-6 plate's 9) misses the island target whether it is halved or
-    not, so there a halving is judged by its gain alone (that plate: utilisation 0.44 -> 0.65
+    is a strip (:data:`LONE_LONG`, :mod:`texture.long_islands`). A part already past the cap
+    (its topology or distortion took more islands: a genus-6 plate's 9) misses the island
+    target whether it is halved or not, so there a halving is judged by its gain alone (that plate: utilisation 0.44 -> 0.65
     for one cut of 0.79)."""
     return 1 < islands_in_part and islands_in_part != cfg.long_max_islands
 

@@ -284,34 +284,34 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     return cands, _best_guesses([c for c, _ in cands], islands, cfg, cache)
 
 
-def guess_layouts(layouts: list[list[Island]], cfg, cache: dict | None = None) -> list[float]:
-    """Each layout's first guess (one unbounded pack of its outlines per mode of
-    :data:`HALVING_MODES`, the better kept), simplified at the tolerance of the first layout's
-    islands: how the cut ways of :func:`texture.long_islands.split_long_islands` are compared."""
-    cache = {} if cache is None else cache
-    tol = guess_tolerance(layouts[0], cfg)
-    best = [0.0] * len(layouts)
+def _mode_guesses(layouts: list[list[Island]], tol: float, cfg, cache: dict) -> list[tuple[float, int, int]]:
+    """(guessed utilisation, layout index, mode index) of each layout in each mode of
+    :data:`HALVING_MODES`: one unbounded pack of its outlines, simplified within ``tol``."""
+    out = []
     for m in HALVING_MODES:
         mode = PACK_MODES[m]
         arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c in layouts]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
-        best = [max(b, e.utilization) if e is not None else b for b, e in zip(best, est)]
+        out += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
+    return out
+
+
+def guess_layouts(layouts: list[list[Island]], cfg) -> list[float]:
+    """Each layout's first guess, the better of its modes (:func:`_mode_guesses`), simplified
+    at the tolerance of the first layout's islands: how the cut ways of
+    :func:`texture.long_islands.split_long_islands` are compared."""
+    best = [0.0] * len(layouts)
+    for u, i, _ in _mode_guesses(layouts, guess_tolerance(layouts[0], cfg), cfg, {}):
+        best[i] = max(best[i], u)
     return best
 
 
 def _best_guesses(layouts: list[list[Island]], islands: list[Island], cfg, cache: dict) -> list[tuple[int, int]]:
-    """The ``PACK_SEARCHED`` best (layout index, mode index) of ``layouts``, each guessed in
-    :data:`HALVING_MODES` by one unbounded pack of its outlines, simplified at the tolerance
-    of the uncut ``islands``."""
+    """The ``PACK_SEARCHED`` best (layout index, mode index) of ``layouts`` (:func:`_mode_guesses`,
+    simplified at the tolerance of the uncut ``islands``)."""
     if not layouts:
         return []
-    guesses = []  # (guessed utilisation, layout, mode)
-    tol = guess_tolerance(islands, cfg)
-    for m in HALVING_MODES:
-        mode = PACK_MODES[m]
-        arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c in layouts]
-        est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
-        guesses += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
+    guesses = _mode_guesses(layouts, guess_tolerance(islands, cfg), cfg, cache)
     guesses.sort(key=lambda g: (-g[0], g[1], g[2]))
     return [(i, m) for _, i, m in guesses[:PACK_SEARCHED]]
 
