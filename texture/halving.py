@@ -196,9 +196,11 @@ def may_halve(islands_in_part: int, cfg) -> bool:
     ``cfg.long_max_islands`` to past it (the island target), and not a part that flattened as
     one island: that is the fewest seams it can have (none on an open, disk-like part), and a
     compact island just over the atlas side costs only a few hundredths of utilisation, less
-    than a first seam is worth. Such a part is halved only by the packing search, for
-    ``cfg.pack_first_seam_gain`` (:mod:`texture.unwrap_layout`), or for its length where it
-    is a strip (:data:`LONE_LONG`, :mod:`texture.long_islands`). A part already past the cap
+    than a first seam is worth. Such a part, and one at the cap, is halved only by the packing
+    search, for ``cfg.pack_first_seam_gain`` (:mod:`texture.unwrap_layout`: at the cap, an
+    island as long as the atlas (a genus-6 plate's rim unrolled, utilisation 0.19) would
+    otherwise stay whole), or a one-island part for its length where it is a strip
+    (:data:`LONE_LONG`, :mod:`texture.long_islands`). A part already past the cap
     (its topology or distortion took more islands: a genus-6 plate's 9) misses the island
     target whether it is halved or not, so there a halving is judged by its gain alone (that plate: utilisation 0.44 -> 0.65
     for one cut of 0.79)."""

@@ -128,16 +128,17 @@ class UnwrapConfig:
     long_max_splits: int = 4
     """Most islands cut so, each into as many pieces as its length asks (0 = off)."""
     long_max_islands: int = 8
-    """No such halving (nor a packing halving) takes a connected component from within this
-    many islands past it (a part already past it is halved on gain alone: :func:`texture.halving.may_halve`)."""
+    """No such halving (nor an ordinary packing halving) takes a connected component from within
+    this many islands past it (a part already past it is halved on gain alone, one at it only
+    by the packing search for ``pack_first_seam_gain``: :func:`texture.halving.may_halve`)."""
     pack_target: float = 0.6
     """Islands are halved for packing (:mod:`texture.unwrap_layout`) only while no layout packs
     this utilisation (coarse)."""
     pack_cut_gain: float = 0.02
     """A packing halving adds seam: kept only when it gains this much utilisation (coarse)."""
     pack_first_seam_gain: float = 0.1
-    """A packing halving of a part that flattened as one island (its first seam) is kept only
-    for this much utilisation: five times ``pack_cut_gain`` (an unrolled cylinder's strip gains
+    """A packing halving of a part that flattened as one island (its first seam), or of a part
+    at ``long_max_islands`` (past the island target), is kept only for this much utilisation: five times ``pack_cut_gain`` (an unrolled cylinder's strip gains
     0.25 from it, inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
     pack_max_cuts: int = 4
     """Most packing halvings (0 = only the islands' turns are searched). Each must gain

@@ -19,10 +19,11 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    ``cfg.pack_target``: one of the ``PACK_CUT_ISLANDS`` largest islands cut in two along mesh
    edges (UVs kept, so flips, overlap and distortion do not change), across or along its
    principal axis, in the middle or a quarter off one end. A halving adds seam, so it is kept
-   only when it gains ``cfg.pack_cut_gain``, at most ``cfg.pack_max_cuts`` of them, never
-   taking a connected component from within ``cfg.long_max_islands`` islands past it
-   (:func:`texture.halving.may_halve`); a part that flattened
-   as one island (its fewest possible seams) is halved only for ``cfg.pack_first_seam_gain``.
+   only when it gains ``cfg.pack_cut_gain``, at most ``cfg.pack_max_cuts`` of them; such an
+   ordinary halving never takes a connected component from within ``cfg.long_max_islands``
+   islands past it (:func:`texture.halving.may_halve`). A part that flattened as one island
+   (its fewest possible seams), or one at ``cfg.long_max_islands`` (a cut takes it past the
+   island target), is halved only for ``cfg.pack_first_seam_gain``.
 
 3. **Quarter turns** (:func:`_quarter_turned`), last: the chosen islands, each turned to its
    minimum-area rectangle, then each of the ``TURNED_ISLANDS`` largest by a quarter turn
@@ -251,15 +252,16 @@ def _best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict
 def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool,
               middle_only: bool = False) -> list[tuple[list[Island], dict]]:
     """Every halving tried this round: (islands after it, its description). ``first_seam``:
-    halvings of parts that flattened as one island (:func:`may_halve`), else of the others;
-    ``middle_only``: the even halvings only (:func:`_paired_halvings`)."""
+    the halvings :func:`may_halve` refuses (of a part that flattened as one island, its first
+    seam, or of a part at ``cfg.long_max_islands``, past the island target), which must buy
+    ``cfg.pack_first_seam_gain``; else the others. ``middle_only``: the even halvings only
+    (:func:`_paired_halvings`)."""
     part, per_comp = island_parts(islands, comp)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
     out = []
     for rank, k in enumerate(np.argsort(area, kind="stable")[::-1][:PACK_CUT_ISLANDS]):
         count = int(per_comp[part[k]])
-        # ordinary halvings are those :func:`may_halve` allows; first seams, parts of one island
-        if not (count == 1 < cfg.long_max_islands if first_seam else may_halve(count, cfg)):
+        if may_halve(count, cfg) == first_seam:
             continue
         adj = face_adjacency(islands[k].xyz, islands[k].faces)  # once for its six halvings
         for along in (False, True):

@@ -82,17 +82,23 @@ def test_a_part_that_flattened_whole_gets_its_first_seam_only_for_a_large_gain()
     assert len(kept.islands) == 1 and kept.stats["halvings"] == [] and kept.packing.utilization < 0.3
 
 
-def test_no_halving_at_the_target_or_past_the_island_cap():
-    """A layout that already packs ``pack_target`` is not cut (a cut adds seam), nor is a
-    component that holds ``long_max_islands`` islands."""
+def test_no_halving_at_the_target_and_past_the_island_cap_only_for_a_large_gain():
+    """A layout that already packs ``pack_target`` is not cut (a cut adds seam). A component
+    that holds ``long_max_islands`` islands is cut past that target only for
+    ``pack_first_seam_gain``, as a part's first seam: the 4 x 1 strip beside a small island
+    (about 0.25 uncut, over 0.6 halved) is halved at the default 0.1 and kept whole at 0.8."""
     square = _grid_island(4, 4, 0.25)
     comp = np.zeros(len(square.faces), np.int64)
     got = choose_layout([square], comp, UnwrapConfig(resolution=512, padding=4))
     assert len(got.islands) == 1 and got.packing.utilization > 0.6 and got.stats["halvings"] == []
     strip, small = _pair()
     comp = np.zeros(len(strip.faces) + len(small.faces), np.int64)
-    capped = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=2))
-    assert len(capped.islands) == 2 and capped.stats["halvings"] == []
+    capped = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=2,
+                                                              pack_first_seam_gain=0.8))
+    assert len(capped.islands) == 2 and capped.stats["halvings"] == [] and capped.packing.utilization < 0.3
+    paid = choose_layout([strip, small], comp, UnwrapConfig(resolution=512, padding=4, long_max_islands=2))
+    gain = paid.packing.utilization - paid.stats["utilization_uncut"]
+    assert len(paid.islands) == 3 and [h["first_seam"] for h in paid.stats["halvings"]] == [True] and gain > 0.3
 
 
 def test_a_part_already_past_the_island_cap_is_halved_on_gain_alone():
