@@ -127,6 +127,31 @@ def test_unwrap_fits_when_no_run_is_given(tmp_path):
     assert info["uv_metrics"]["flipped_faces"] == 0 and info["uv_metrics"]["uv_overlap_percent"] == 0.0
 
 
+def test_unwrap_fits_fewer_steps_than_a_reconstruction_unless_given_a_budget():
+    """Without ``--steps`` or ``--time-budget`` the unwrap's fit runs ``UNWRAP_FIT_STEPS``
+    steps (fewer than the ``fast`` preset's own), or the preset's own where those are fewer
+    (``tiny``); a given budget is kept as given."""
+    import argparse
+
+    from mna.commands.fit import build_config
+    from mna.commands.unwrap import UNWRAP_FIT_STEPS, _fit_args, register
+    from mna.config import preset
+
+    parser = argparse.ArgumentParser()
+    register(parser.add_subparsers())
+
+    def config(*extra):
+        return build_config(_fit_args(parser.parse_args(["unwrap", "m.ply", "-o", "out", *extra])))
+
+    assert UNWRAP_FIT_STEPS < preset("fast").steps
+    fast = config()
+    assert (fast.preset, fast.steps, fast.time_budget) == ("fast", UNWRAP_FIT_STEPS, None)
+    assert config("--preset", "tiny").steps == preset("tiny").steps < UNWRAP_FIT_STEPS
+    assert config("--steps", "4321").steps == 4321
+    timed = config("--time-budget", "90")
+    assert timed.time_budget == 90.0
+
+
 def test_unwrap_refuses_a_non_empty_out_without_overwrite(tmp_path, capsys):
     """The fit path follows `mna fit`'s run-folder rule (refuse a non-empty OUT; --overwrite)."""
     mesh = tmp_path / "sphere.obj"
