@@ -107,4 +107,8 @@ def run_unwrap(args: argparse.Namespace) -> int:
           f"{m['distortion_metric']:.3f}, flipped {m['flipped_faces']}, overlap {m['uv_overlap_percent']:.2f} %, "
           f"utilization {m['utilization']:.2f}, fallback area {doc['assignment']['fallback_area_fraction']:.3f}, "
           f"{doc['timings']['unwrap_total']:.1f} s -> {Path(args.out) / 'mesh.obj'}, mesh.glb")
+    if fit_info["fit"] == "fitted":  # a short fit by default: say what the run folder's fit is
+        print(f"fit: {fit_info['fit_steps']} steps, {fit_info['fit_seconds']:.1f} s, F-score "
+              f"{fit_info['fit_fscore_mesh']:.1f} (the charts serve the unwrap; for a reconstruction fit longer: "
+              "mna fit, or --steps)")
     return 0
