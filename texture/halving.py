@@ -200,10 +200,10 @@ def may_halve(islands_in_part: int, cfg) -> bool:
     search, for ``cfg.pack_first_seam_gain`` (:mod:`texture.unwrap_layout`: at the cap, an
     island as long as the atlas (a genus-6 plate's rim unrolled, utilisation 0.19) would
     otherwise stay whole), or a one-island part for its length where it is a strip
-    (:data:`LONE_LONG`, :mod:`texture.long_islands`). A part already past the cap
-    (its topology or distortion took more islands: a genus-6 plate's 9) misses the island
-    target whether it is halved or not, so there a halving is judged by its gain alone (that plate: utilisation 0.44 -> 0.65
-    for one cut of 0.79)."""
+    (:data:`LONE_LONG`, :mod:`texture.long_islands`). A part already past the cap (its
+    topology or distortion took more islands: a genus-6 plate's 9) misses the island target
+    whether it is halved or not, so there a halving is judged by its gain alone (that plate:
+    utilisation 0.44 -> 0.65 for one cut of 0.79)."""
     return 1 < islands_in_part and islands_in_part != cfg.long_max_islands
 
 

@@ -138,8 +138,9 @@ class UnwrapConfig:
     """A packing halving adds seam: kept only when it gains this much utilisation (coarse)."""
     pack_first_seam_gain: float = 0.1
     """A packing halving of a part that flattened as one island (its first seam), or of a part
-    at ``long_max_islands`` (past the island target), is kept only for this much utilisation: five times ``pack_cut_gain`` (an unrolled cylinder's strip gains
-    0.25 from it, inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
+    at ``long_max_islands`` (past the island target), is kept only for this much utilisation:
+    five times ``pack_cut_gain`` (an unrolled cylinder's strip gains 0.25 from it,
+    inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
     pack_max_cuts: int = 4
     """Most packing halvings (0 = only the islands' turns are searched). Each must gain
     ``pack_cut_gain`` and the rounds stop at the target or the first halving that does not pay,
