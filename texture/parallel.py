@@ -17,7 +17,7 @@ about a dozen test runs; presumably a wake-up its shutdown misses). So a pool in
 job has finished for ``STALL_SECONDS`` is taken for hung: its workers are killed and the
 jobs they had not finished run here instead, with the same result (the jobs are
 deterministic), only later. The hang comes with the number of xatlas calls: the unwrap's
-quarter-turn search then made 256 per unwrap, and a test run waited out a whole stall (one
+quarter-turn search makes 256 per unwrap, and then a test run waited out a whole stall (one
 of two full CI runs, one of 18 runs of the unwrap tests); the packer's own xatlas jobs
 (:mod:`texture.scale_search`, milliseconds to a second each) therefore pass a shorter stall.
 

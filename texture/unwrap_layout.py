@@ -29,14 +29,10 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    minimum-area rectangle, then each of the ``TURNED_ISLANDS`` largest by a quarter turn
    (0, 90, 180 or 270 degrees: rotations, never a mirror), packed with xatlas's own turns off
    (it only translates). xatlas turns each island on its own as it places it, largest first;
-   which turns let a few large islands nest is a question of the set. The sets are
-   searched by steepest ascent on their guesses (one xatlas call each), from no turns, one
-   island's turn changed per move: 13-49 guesses instead of all 4^4 = 256, whose cost
-   grows with the islands guessed (3-7 s of a 30-part mesh's packing). A guess ranks sets
-   only roughly (packed, the third best guess of the 4^4 won on one mesh), so the search
-   ends about where the full one does: on 20 benchmark and unseen fits it packed within
-   -0.014 / +0.025 of it (results in benchmarks/RESULTS.md, eighteenth session). The layout
-   it starts from is kept where no set packs better. Where the result is
+   which turns let a few large islands nest is a question of the set, and the 4^4 sets
+   are cheap to guess (one xatlas call each, 0.5-1 s in all). On six benchmark fits' final
+   layouts it gained 0.000-0.023 (bob 0.593 -> 0.616, spot 0.559 -> 0.582) and lost
+   nowhere: the layout it starts from is kept where no set packs better. Where the result is
    still below ``cfg.pack_target`` and the search stopped at an ordinary halving that did not
    pay, that halving is quarter-turned too and kept when it gains ``cfg.pack_cut_gain`` over
    the result: the gain a halving must buy, measured as the layouts will be delivered (spot:
@@ -86,12 +82,6 @@ FIXED_TURNS = 3
 #: if xatlas placed islands the same way turned, but it fills from one corner (fixing the
 #: largest island's turn lost 0.01-0.02 on bob, spot and the torus)
 TURNED_ISLANDS = 4
-#: most moves of the quarter-turn search's steepest ascent (:func:`_quarter_turned`), each
-#: guessing ``3 * TURNED_ISLANDS`` sets: any set is 4 moves from any other
-QUARTER_MOVES = 4
-#: turn sets searched in full instead (a layout of at most 3 islands: 64 sets, about as many
-#: guesses as the ascent's most, 49)
-FULL_TURN_SEARCH = 64
 #: cut positions (fraction of the island's area before the cut) of each halving tried:
 #: the middle, a quarter off the low end, a quarter off the high end
 PACK_CUTS = (LONG_CUTS, np.linspace(0.15, 0.3, 4), np.linspace(0.7, 0.85, 4))
@@ -359,51 +349,28 @@ def quarter_turn(isl: Island, k: int) -> Island:
 def _quarter_turned(islands: list[Island], cfg, cache: dict, floor: float) -> _Packed | None:
     """The best packing, above ``floor``, of ``islands`` turned to their minimum-area rectangles
     and then by quarter turns (:data:`TURNED_ISLANDS`), xatlas's turns off; None if none is
-    above ``floor``. The turn sets are guessed (one unbounded pack each of the outlines alone,
-    turned as arrays): all of them up to :data:`FULL_TURN_SEARCH`, else by steepest ascent
-    from no turns, each move guessing every set that turns one island otherwise and taking
-    the best while it beats the current set, at most :data:`QUARTER_MOVES` moves. The
-    ``PACK_SEARCHED`` best sets guessed are made whole and packed (256 turned copies of the
-    1M-face bunny's islands took 0.6 GB)."""
+    above ``floor``. Sets are ranked by one unbounded pack each of the outlines alone (turned
+    as arrays: a set of whole islands is made only for the ``PACK_SEARCHED`` best, which are
+    packed; 256 turned copies of the 1M-face bunny's islands took 0.6 GB)."""
     placed = turned(islands, PACK_MODES[2])
     index: list = []
     uv, faces, owner = outline_arrays(placed, cache, index, guess_tolerance(placed, cfg))
     bounds = np.cumsum([0] + [len(v) for v in index])
     area = [float(np.abs(triangle_areas(isl.uv, isl.faces)).sum()) for isl in placed]
     big = np.argsort(area, kind="stable")[::-1][:TURNED_ISLANDS]
-    guessed: dict[tuple[int, ...], float] = {}  # turn set -> guessed utilisation, in guessing order
-
-    def guess(sets: list[tuple[int, ...]]) -> None:
-        new = [t for t in dict.fromkeys(sets) if t not in guessed]
-        arrays = []
-        for turns in new:
-            turned_uv = uv.copy()
-            for i, q in zip(big, turns):  # the packer moves islands rigidly: where each turns about does not matter
-                part = slice(bounds[i], bounds[i + 1])
-                turned_uv[part] = _quarter(uv[part] - uv[part].mean(0), q)
-            arrays.append((turned_uv, faces, owner))
-        est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding,
-                               options=PACK_MODES[FIXED_TURNS][1])
-        guessed.update((t, -np.inf if e is None else e.utilization) for t, e in zip(new, est))
-
-    current = (0,) * len(big)
-    full = 4 ** len(big) <= FULL_TURN_SEARCH
-    guess(list(itertools.product(range(4), repeat=len(big))) if full else [current])
-    for _ in range(0 if full else QUARTER_MOVES):
-        moves = [current[:i] + (q,) + current[i + 1:] for i in range(len(big)) for q in range(4) if q != current[i]]
-        guess(moves)
-        step = max(moves, key=lambda t: guessed[t])  # the first of equals
-        if guessed[step] <= guessed[current]:
-            break
-        current = step
-    ranked = sorted(guessed, key=lambda t: -guessed[t])[:PACK_SEARCHED]  # stable: ties in guessing order
-    if not np.isfinite(guessed[ranked[0]]):
-        return None
-    layouts = []
-    for turns in ranked:
+    sets, arrays = [], []
+    for turns in itertools.product(range(4), repeat=len(big)):
         k = np.zeros(len(placed), np.int64)
         k[big] = turns
-        layouts.append([quarter_turn(isl, int(q)) for isl, q in zip(placed, k)])
+        sets.append(k)
+        turned_uv = uv.copy()
+        for i in big:  # the packer moves islands rigidly: where each turns about does not matter
+            part = slice(bounds[i], bounds[i + 1])
+            turned_uv[part] = _quarter(uv[part] - uv[part].mean(0), int(k[i]))
+        arrays.append((turned_uv, faces, owner))
+    est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=PACK_MODES[FIXED_TURNS][1])
+    ranked = sorted((-e.utilization, i) for i, e in enumerate(est) if e is not None)[:PACK_SEARCHED]
+    layouts = [[quarter_turn(isl, int(q)) for isl, q in zip(placed, sets[i])] for _, i in ranked]
     return _best_packed(layouts, [FIXED_TURNS] * len(layouts), cfg, cache, floor)
 
 

@@ -191,36 +191,6 @@ def test_two_right_triangles_turned_half_a_turn_apart_pack_as_a_square():
     assert np.abs(right[0] - right[1]) == pytest.approx(np.ptp(px, axis=0), rel=0.05)
 
 
-def test_the_quarter_turn_search_finds_the_square_among_four_islands_in_few_guesses(monkeypatch):
-    """The two triangles with two specks beside them: four turned islands, 256 turn sets. The
-    steepest ascent guesses at most ``1 + 12 * QUARTER_MOVES`` of them (one xatlas call each)
-    and still finds the triangles' square."""
-    import texture.unwrap_layout as layout
-
-    tris = [_right_triangle(8, 0.125, 0), _right_triangle(8, 0.125, 1)]
-    specks = []
-    for k in (2, 3):
-        g = _grid_island(1, 1, 0.05)
-        specks.append(Island(g.faces, g.uv, g.xyz + [5.0 * k, 0.0, 0.0], np.arange(2) + 2 * len(tris[0].faces) + 2 * (k - 2),
-                             np.arange(4) + 2 * len(tris[0].uv) + 4 * (k - 2), k))
-    comp = np.concatenate([np.repeat([0, 1], len(tris[0].faces)), [2, 2, 3, 3]])
-    guessed = []
-    real = layout.estimate_layouts
-
-    def counting(arrays, **kw):
-        if kw.get("options") == layout.PACK_MODES[layout.FIXED_TURNS][1]:
-            guessed.extend(arrays)
-        return real(arrays, **kw)
-
-    monkeypatch.setattr(layout, "estimate_layouts", counting)
-    got = choose_layout(tris + specks, comp, UnwrapConfig(resolution=256, padding=4, pack_max_cuts=0))
-    assert 13 <= len(guessed) <= 1 + 12 * layout.QUARTER_MOVES < 4 ** 4
-    assert got.stats["utilization_turned_as_xatlas"] < 0.5 and got.packing.utilization > 0.75
-    uv, faces, island = island_arrays(got.islands)
-    assert (signed_areas(got.packing.uv, faces) > 0).all()
-    assert verify_packing(got.packing.uv, faces, island, 256)[0] == 0
-
-
 def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned():
     """A comb with a speck of its part: two halvings pay as xatlas turns the islands, the third
     does not (it gains under 0.02 there), and the quarter-turned four islands stay below 0.6.
