@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from mnacore.triangles import signed_areas
+from texture.layout_packing import island_arrays, min_rect_rotation, quarter_turn
 from texture.unwrap import UnwrapConfig
 from texture.unwrap_islands import Island
-from texture.unwrap_layout import choose_layout, island_arrays, min_rect_rotation, quarter_turn
+from texture.unwrap_layout import choose_layout
 from texture.verify import verify_packing
 
 
