@@ -154,9 +154,10 @@ def whole_islands(islands: list[Island], index: list[np.ndarray], packing: Packi
 
 
 def best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict,
-                 floor: float = 0.0) -> Packed | None:
+                floor: float = 0.0, options: dict | None = None) -> Packed | None:
     """The best of the (islands, mode index) pairs packed for real (:func:`texture.pack.pack_islands`
-    from its coarse plan), or None if none packs above ``floor``.
+    from its coarse plan), or None if none packs above ``floor``. ``options``: xatlas
+    PackOptions set on top of each mode's.
 
     The coarse plan's utilisation is not the packing's: xatlas's 90-degree turns mirror
     islands, and keeping them the right way round cost up to 0.07 (bob: 0.574 coarse, 0.508
@@ -175,7 +176,7 @@ def best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict,
         index: list = []
         placed = turned(layout, PACK_MODES[m])
         arrays = outline_arrays(placed, cache, index)
-        plan = plan_layouts([arrays], candidates=(PACK_MODES[m][1],), **kw)[0]
+        plan = plan_layouts([arrays], candidates=({**PACK_MODES[m][1], **(options or {})},), **kw)[0]
         if plan is not None:
             plans.append((plan, arrays, index, layout, placed, m))
     best = None
@@ -235,11 +236,5 @@ def quarter_turned(islands: list[Island], cfg, cache: dict, floor: float) -> Pac
 def brute_packed(p: Packed, cfg, cache: dict) -> Packed | None:
     """The chosen layout ``p`` packed once more with xatlas's exhaustive placement
     (``bruteForce``) in its mode; None unless that packs better."""
-    kw = {"resolution": cfg.resolution, "padding": cfg.padding}
-    index: list = []
-    arrays = outline_arrays(p.placed, cache, index)
-    plan = plan_layouts([arrays], candidates=({**PACK_MODES[p.mode][1], "bruteForce": True},), **kw)[0]
-    if plan is None or plan.utilization <= p.utilization:
-        return None
-    got = pack_islands(*arrays, plan=plan, **kw)
-    return Packed(p.islands, p.mode, got, p.placed, index) if got.utilization > p.utilization else None
+    got = best_packed([p.islands], [p.mode], cfg, cache, p.utilization, {"bruteForce": True})
+    return got if got is not None and got.utilization > p.utilization else None

@@ -1,4 +1,5 @@
-"""The unwrap's packing search: which way to turn the islands, and which to halve, before packing.
+"""The unwrap's packing search: which way to turn the islands, and which to halve, before
+   packing.
 
 The unwrap's islands are few and large (2-8 on a single-part mesh), and relaxed islands are
 round blobs: their minimum-area bounding rectangles are only 55-75 % full. With so few
@@ -7,9 +8,10 @@ islands xatlas cannot fill the gaps, so utilisation is set by the islands' shape
 and which one, and where, is not predictable from the shapes, so layouts are *packed* to be
 compared (as the export's cut rounds do, :mod:`texture.layout_search`):
 
-1. **Turns** (:data:`texture.layout_packing.PACK_MODES`). xatlas's own ``rotate_charts_to_axis`` turns each island
-   to an axis of its own choosing; turning every island to its minimum-area bounding
-   rectangle here (a rotation: an isometry, never a mirror; distortion and texel density do
+1. **Turns** (:data:`texture.layout_packing.PACK_MODES`). xatlas's own
+   ``rotate_charts_to_axis`` turns each island to an axis of its own choosing; turning every
+   island to its minimum-area bounding rectangle here (a rotation: an isometry, never a
+   mirror; distortion and texel density do
    not change) and switching xatlas's turn off packed tighter in coarse plans on four of six
    fits (bob 0.51 -> 0.57, eight 0.44 -> 0.50) and looser on the others (spot 0.42 -> 0.36);
    once its mirrored islands were turned back, it won only on the eight uncut (0.50), but
@@ -25,8 +27,9 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    (its fewest possible seams), or one at ``cfg.long_max_islands`` (a cut takes it past the
    island target), is halved only for ``cfg.pack_first_seam_gain``.
 
-3. **Quarter turns** (:func:`texture.layout_packing.quarter_turned`), last: the chosen islands, each turned to its
-   minimum-area rectangle, then each of the ``TURNED_ISLANDS`` largest by a quarter turn
+3. **Quarter turns** (:func:`texture.layout_packing.quarter_turned`), last: the chosen
+   islands, each turned to its minimum-area rectangle, then each of the ``TURNED_ISLANDS``
+   largest by a quarter turn
    (0, 90, 180 or 270 degrees: rotations, never a mirror), packed with xatlas's own turns off
    (it only translates). xatlas turns each island on its own as it places it, largest first;
    which turns let a few large islands nest is a question of the set, and the 4^4 sets
@@ -42,8 +45,9 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    pairs (two like parts halved one at a time keep the atlas's shape), so even halvings are
    tried two at a time, each still buying what it costs.
 
-5. **Exhaustive placement** (:func:`texture.layout_packing.brute_packed`), once, on the layout chosen above:
-   xatlas's ``bruteForce`` tries every position for each island where its default tries a
+5. **Exhaustive placement** (:func:`texture.layout_packing.brute_packed`), once, on the
+   layout chosen above: xatlas's ``bruteForce`` tries every position for each island where
+   its default tries a
    sample of them. It is too slow for the search itself (the search with it throughout took
    limbs' packing 26 -> 172 s and the assembly's 7 -> 22 s), but one packing of the chosen
    layout costs about as much as one of the search's packings, and it is kept only where it
