@@ -21,6 +21,13 @@ quarter-turn search makes 256 per unwrap, and then a test run waited out a whole
 of two full CI runs, one of 18 runs of the unwrap tests); the packer's own xatlas jobs
 (:mod:`texture.scale_search`, milliseconds to a second each) therefore pass a shorter stall.
 
+Each worker runs its numerical libraries (the BLAS under numpy and scipy) on one thread.
+OpenBLAS starts a thread per core in every process, and its idle threads spin: two workers
+with two BLAS threads each on two cores starved each other, so the same SLIM jobs of the
+111k-face bunny took 2.2-107 s from one run to the next (3 of 13 runs over 80 s); with one
+BLAS thread per worker 1.8-3.0 s in 24 of 24 (``threadpoolctl``, as scikit-learn does).
+The pool already runs one job per core, so a worker loses nothing by it.
+
 As with any fork server or spawn start (the default from Python 3.14), a script that calls
 the unwrap or export directly must guard its entry with ``if __name__ == "__main__":``
 (the ``mna`` commands do).
@@ -46,6 +53,7 @@ PRELOAD = ["numpy", "scipy.sparse", "scipy.spatial", "igl", "xatlas",
            "texture.relax", "texture.scale_search", "texture.orient", "texture.unwrap_islands"]
 
 _peak_worker_kb = 0
+_limits: Any = None  # the worker's BLAS thread limit (held so that it stays in force)
 
 
 def default_workers() -> int:
@@ -60,7 +68,11 @@ def peak_worker_rss_mb() -> float:
 
 
 def _set_shared(shared) -> None:
-    global _shared
+    """A worker's initialiser: its shared object, and one BLAS thread (see the module doc)."""
+    global _shared, _limits
+    from threadpoolctl import threadpool_limits
+
+    _limits = threadpool_limits(limits=1, user_api="blas")
     _shared = shared
 
 

@@ -98,3 +98,20 @@ def test_jobs_of_a_killed_pool_run_here_even_once_the_pool_marked_them_broken(mo
 def test_parallel_map_one_worker_runs_here():
     assert parallel_map(_job, [1, 2], workers=1, shared={"factor": 1, "offset": [0, 5, 7]}) == [
         (6, os.getpid()), (9, os.getpid())]
+
+
+def _blas_threads(x=None, shared=None):
+    from threadpoolctl import threadpool_info
+
+    return {p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+
+
+def test_each_worker_runs_its_blas_on_one_thread_and_the_caller_keeps_its_own():
+    # two workers whose BLAS threads spin on two cores starve each other (the module doc);
+    # numpy and scipy each load an OpenBLAS, and each must be limited there
+    import scipy.linalg  # noqa: F401  (scipy's OpenBLAS, loaded here as in the workers)
+
+    before = _blas_threads()
+    got = parallel_map(_blas_threads, [0, 1, 2, 3], workers=2)
+    assert all(len(g) >= 2 and set(g.values()) == {1} for g in got)
+    assert _blas_threads() == before  # the caller's own pools are left as they were
