@@ -186,7 +186,8 @@ def best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict,
         got = Packed(layout, m, pack_islands(*arrays, plan=plan, **kw), placed, index)
         if best is None or got.utilization > best.utilization:
             best = got
-    return best
+    # a plan above the floor can pack below it (the unmirroring above): then nothing passed
+    return best if best is not None and best.utilization > floor else None
 
 
 def _quarter(d: np.ndarray, k: int) -> np.ndarray:

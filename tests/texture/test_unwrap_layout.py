@@ -292,3 +292,38 @@ def test_the_chosen_layout_is_kept_or_bettered_by_an_exhaustive_placement():
     square = choose_layout(islands[:1], comp[:len(islands[0].faces)], UnwrapConfig(resolution=256, padding=2, pack_max_cuts=0))
     assert "brute_force" not in square.stats  # one disc: nothing to place better
     assert square.packing.utilization == pytest.approx(square.stats["utilization_before_brute"])
+
+
+def _l_island(nx: int, ny: int, label: int) -> Island:
+    """An L: an nx-by-ny grid of 0.25 cells less its corner beyond 40 % of each side."""
+    g = _grid_island(nx, ny, 0.25)
+    c = g.uv[g.faces].mean(1)
+    f = g.faces[~((c[:, 0] > nx * 0.1) & (c[:, 1] > ny * 0.1))]
+    vid, inv = np.unique(f, return_inverse=True)
+    uv = g.uv[vid]
+    return Island(inv.reshape(-1, 3), uv, np.column_stack([uv, np.zeros(len(uv))]), np.arange(len(f)),
+                  np.arange(len(uv)), label)
+
+
+def test_a_layout_whose_plan_clears_the_floor_but_whose_packing_does_not_is_refused():
+    """Four L islands turned to their minimum rectangles, xatlas free to turn them by quarter
+    turns: its coarse plan turns (and so mirrors) some, and kept unmirrored they pack below
+    the plan. With the floor between the two the packing
+    did not pass it, so :func:`best_packed` returns None (its callers keep what they had);
+    below the packing it returns that packing."""
+    from texture.layout_packing import PACK_MODES, best_packed, outline_arrays, turned
+    from texture.scale_search import plan_layouts
+
+    mode = 2
+    assert PACK_MODES[mode] == (True, {"rotate_charts_to_axis": False})
+
+    islands = [_l_island(nx, ny, k) for k, (nx, ny) in enumerate(((10, 4), (7, 7), (5, 3), (3, 6)))]
+    cfg = UnwrapConfig(resolution=256, padding=2)
+    plan = plan_layouts([outline_arrays(turned(islands, PACK_MODES[mode]), {}, [])],
+                        candidates=(PACK_MODES[mode][1],), resolution=256, padding=2)[0]
+    packed = best_packed([islands], [mode], cfg, {})
+    assert plan.utilization > packed.utilization + 0.01  # the case: unmirrored, it packs worse
+    between = (plan.utilization + packed.utilization) / 2
+    assert best_packed([islands], [mode], cfg, {}, between) is None
+    again = best_packed([islands], [mode], cfg, {}, packed.utilization - 0.01)
+    assert again.utilization == pytest.approx(packed.utilization)
