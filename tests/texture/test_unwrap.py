@@ -21,7 +21,7 @@ from texture.flatten import boundary_loop_count, euler_characteristic
 from texture.harness import measure
 from texture.meshprep import prepare_mesh
 from texture.regions import clean_labels, face_adjacency, regions
-from texture.unwrap import STAGES, UnwrapConfig, unwrap_mesh
+from texture.unwrap import FAR_TOL, NEAR_TOL, STAGES, UnwrapConfig, unwrap_mesh
 
 FAST = UnwrapConfig(resolution=512, padding=2, slim_iterations=100)
 
@@ -162,6 +162,35 @@ def test_sphere_caps_assign_by_cap_and_seams_only_where_islands_meet():
     m = measure(res.mesh, reference=mesh).summary
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
     assert res.stats["islands"] <= 4 and m["distortion_metric"] < 0.15
+
+
+@pytest.mark.parametrize("scale, offset", [(2000.0, (3000.0, -500.0, 1e4)), (2e-3, (1e-3, 0.0, -4e-3))])
+def test_the_unwrap_is_the_same_in_any_input_frame(scale, offset):
+    """Every tolerance of the unwrap lives in the charts' unit-ball frame: the sphere and its
+    cap charts in millimetres far from the origin, or in kilometres, unwrap to the same
+    islands, seams and distortion (to rounding) as in the frame of the other sphere tests
+    (scale 2). The caps are not opposite, so no two islands are alike; the packing search's
+    halvings are off: two cuts that pack within 1e-4 of each other are a near-tie that a
+    rounding may decide either way, in any frame. (An absolute area epsilon in the mesh
+    preparation, 1e-7, fails it: at scale 2e-3 every face would be degenerate.)"""
+    uv, xyz, occ = sphere_charts(48, axes=((0, 0, 1), (0.6, 0, -0.8)))
+    # 0.015 off the charts (unit frame): between the assignment's near and far tolerances
+    mesh = shapes.sphere(radius=1.0 + (NEAR_TOL + FAR_TOL) / 2, subdivisions=3)
+    got = []
+    for s, c in ((SCALE, CENTER), (scale, np.asarray(offset))):
+        charts = ChartGrids(uv, (xyz - CENTER) / SCALE * s + c, occ, 0.5, Normalization(c, s))
+        res = unwrap_mesh(mesh.vertices * s + c, mesh.faces, charts, replace(FAST, pack_max_cuts=0))
+        m = measure(res.mesh, reference=trimesh.Trimesh(mesh.vertices * s + c, mesh.faces, process=False),
+                    normalization=charts.normalization).summary
+        got.append((res, m))
+    (a, ma), (b, mb) = got
+    assert ma["seam_length"] > 1.0, ma  # the caps cut the sphere: a seam to compare
+    # the same faces in each island (an island's number may differ)
+    pairs = set(zip(a.island.tolist(), b.island.tolist()))
+    assert len(pairs) == len(set(a.island.tolist())) == len(set(b.island.tolist()))
+    for k in ("seam_length", "distortion_metric", "distortion_conformal", "distortion_area"):
+        assert mb[k] == pytest.approx(ma[k], rel=1e-6), k
+    assert mb["utilization"] == pytest.approx(ma["utilization"], abs=0.01)
 
 
 def test_nonmanifold_duplicated_and_degenerate_input_keep_every_face():
