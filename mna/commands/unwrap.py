@@ -15,6 +15,10 @@ from mnacore.errors import MnaError
 #: while the fit's own time grows with its steps (the `fast` preset's 3,000 take minutes here).
 UNWRAP_FIT_STEPS = 500
 
+#: with --run, a fallback share of the area above this is reported as a likely mismatch of the
+#: run and the mesh (a fit of the mesh itself leaves only components it never sampled)
+REUSED_FALLBACK_WARNING = 0.5
+
 
 def register(subparsers) -> None:
     """Add ``unwrap`` to the `mna` parser."""
@@ -107,6 +111,15 @@ def run_unwrap(args: argparse.Namespace) -> int:
           f"{m['distortion_metric']:.3f}, flipped {m['flipped_faces']}, overlap {m['uv_overlap_percent']:.2f} %, "
           f"utilization {m['utilization']:.2f}, fallback area {doc['assignment']['fallback_area_fraction']:.3f}, "
           f"{doc['timings']['unwrap_total']:.1f} s -> {Path(args.out) / 'mesh.obj'}, mesh.glb")
+    fallback = doc["assignment"]["fallback_area_fraction"]
+    if fit_info["fit"] == "reused" and fallback > REUSED_FALLBACK_WARNING:
+        # a fit of this mesh reaches every part it sampled: most of the area out of reach means
+        # charts of another surface, or of this one in other units or at another place
+        import sys
+
+        print(f"mna unwrap: warning: the charts of {args.run} reach only {100 * (1 - fallback):.0f} % of the mesh's "
+              "area (the rest took the classical fallback): was that run fitted to this mesh, in these units and "
+              "at this place?", file=sys.stderr)
     if fit_info["fit"] == "fitted":  # a short fit by default: say what the run folder's fit is
         print(f"fit: {fit_info['fit_steps']} steps, {fit_info['fit_seconds']:.1f} s, F-score "
               f"{fit_info['fit_fscore_mesh']:.1f} (the charts serve the unwrap; for a reconstruction fit longer: "

@@ -204,3 +204,24 @@ def test_unwrap_a_low_poly_box(tmp_path):
     m = json.loads((out / "unwrap.json").read_text())["uv_metrics"]
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
     assert m["distortion_metric"] < 0.15  # flat faces: each island folds out flat
+
+
+def test_a_run_that_does_not_reach_the_mesh_is_reported(tmp_path, capsys):
+    """--run with charts of the same sphere moved away (another place, as a run fitted in
+    other units would be): every face takes the fallback, the unwrap still writes valid UVs,
+    and one warning line says so; the run's own mesh gets no warning."""
+    run = write_sphere_run(tmp_path / "run", G=32)
+    mesh = trimesh.load(run / "input.ply", process=False)
+    moved = mesh.copy()
+    moved.apply_translation([40.0, 0.0, 0.0])  # 20 radii away (the sphere's radius is 2)
+    moved.export(tmp_path / "moved.ply")
+    args = ["--run", str(run), "--no-progress", *SMALL]
+    assert main(["unwrap", str(run / "input.ply"), "-o", str(tmp_path / "own"), *args]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["unwrap", str(tmp_path / "moved.ply"), "-o", str(tmp_path / "out"), *args]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "warning" in err[0] and "reach only 0 %" in err[0]
+    doc = json.loads((tmp_path / "out" / "unwrap.json").read_text())
+    assert doc["assignment"]["fallback_area_fraction"] == pytest.approx(1.0)
+    assert doc["uv_metrics"]["flipped_faces"] == 0 and doc["uv_metrics"]["uv_overlap_percent"] == 0.0
+
