@@ -20,6 +20,9 @@ deterministic), only later. The hang comes with the number of xatlas calls: the 
 quarter-turn search makes 256 per unwrap, and then a test run waited out a whole stall (one
 of two full CI runs, one of 18 runs of the unwrap tests); the packer's own xatlas jobs
 (:mod:`texture.scale_search`, milliseconds to a second each) therefore pass a shorter stall.
+The cause is a lost wake-up in xatlas's scheduler at an atlas's destruction, right after its
+call (it also hung a test process once, where no stall guards); the packer now destroys each
+atlas several calls later (:func:`texture.placement.xatlas_pack`), and the stall stays a guard.
 
 Each worker runs its numerical libraries (the BLAS under numpy and scipy) on one thread.
 OpenBLAS starts a thread per core in every process, and its idle threads spin: two workers

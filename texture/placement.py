@@ -17,6 +17,7 @@ An island that xatlas shrank, split or re-parametrised fails the first test.
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,10 @@ from .similarity import similarity_fit
 MAX_FIT_RESIDUAL = 2.0
 #: UVs handed to xatlas are scaled so the median face is UV_UNIT on a side (see xatlas_pack)
 UV_UNIT = 100.0
+
+#: xatlas atlases kept alive after their call (see :func:`xatlas_pack`)
+KEPT_ATLASES = 8
+_kept: deque = deque(maxlen=KEPT_ATLASES)
 
 
 def xatlas_pack(uv, faces, island, resolution, padding, tpu, options: dict | None = None):
@@ -57,6 +62,12 @@ def xatlas_pack(uv, faces, island, resolution, padding, tpu, options: dict | Non
     for k, v in (options or {}).items():
         setattr(po, k, v)
     atlas.generate(pack_options=po)
+    # Destroying an atlas joins xatlas's worker threads, and a worker that is going back to
+    # sleep right then can miss the wake-up (xatlas sets the flag and notifies without the
+    # worker's mutex): the join waits forever (seen in a worker of texture.parallel, and once
+    # in a test process). Each atlas is therefore destroyed only KEPT_ATLASES calls later,
+    # when its workers have long been asleep; the outlines packed here are small.
+    _kept.append(atlas)
     return atlas
 
 
