@@ -237,5 +237,4 @@ def quarter_turned(islands: list[Island], cfg, cache: dict, floor: float) -> Pac
 def brute_packed(p: Packed, cfg, cache: dict) -> Packed | None:
     """The chosen layout ``p`` packed once more with xatlas's exhaustive placement
     (``bruteForce``) in its mode; None unless that packs better."""
-    got = best_packed([p.islands], [p.mode], cfg, cache, p.utilization, {"bruteForce": True})
-    return got if got is not None and got.utilization > p.utilization else None
+    return best_packed([p.islands], [p.mode], cfg, cache, p.utilization, {"bruteForce": True})

@@ -1,5 +1,4 @@
-"""The unwrap's packing search: which way to turn the islands, and which to halve, before
-   packing.
+"""The unwrap's packing search: which way to turn the islands, and which to halve.
 
 The unwrap's islands are few and large (2-8 on a single-part mesh), and relaxed islands are
 round blobs: their minimum-area bounding rectangles are only 55-75 % full. With so few
@@ -11,8 +10,7 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
 1. **Turns** (:data:`texture.layout_packing.PACK_MODES`). xatlas's own
    ``rotate_charts_to_axis`` turns each island to an axis of its own choosing; turning every
    island to its minimum-area bounding rectangle here (a rotation: an isometry, never a
-   mirror; distortion and texel density do
-   not change) and switching xatlas's turn off packed tighter in coarse plans on four of six
+   mirror; distortion and texel density do not change) and switching xatlas's turn off packed tighter in coarse plans on four of six
    fits (bob 0.51 -> 0.57, eight 0.44 -> 0.50) and looser on the others (spot 0.42 -> 0.36);
    once its mirrored islands were turned back, it won only on the eight uncut (0.50), but
    it won four of the six halving rounds. So every layout is packed in several modes and
@@ -29,8 +27,7 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
 
 3. **Quarter turns** (:func:`texture.layout_packing.quarter_turned`), last: the chosen
    islands, each turned to its minimum-area rectangle, then each of the ``TURNED_ISLANDS``
-   largest by a quarter turn
-   (0, 90, 180 or 270 degrees: rotations, never a mirror), packed with xatlas's own turns off
+   largest by a quarter turn (0, 90, 180 or 270 degrees: rotations, never a mirror), packed with xatlas's own turns off
    (it only translates). xatlas turns each island on its own as it places it, largest first;
    which turns let a few large islands nest is a question of the set, and the 4^4 sets
    are cheap to guess (one xatlas call each, 0.5-1 s in all). On six benchmark fits' final
@@ -47,8 +44,7 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
 
 5. **Exhaustive placement** (:func:`texture.layout_packing.brute_packed`), once, on the
    layout chosen above: xatlas's ``bruteForce`` tries every position for each island where
-   its default tries a
-   sample of them. It is too slow for the search itself (the search with it throughout took
+   its default tries a sample of them. It is too slow for the search itself (the search with it throughout took
    limbs' packing 26 -> 172 s and the assembly's 7 -> 22 s), but one packing of the chosen
    layout costs about as much as one of the search's packings, and it is kept only where it
    packs better (islands, seams and distortion do not change). On 24 unwraps (19 benchmark
@@ -215,7 +211,7 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     for j, m in _best_guesses([c for c, _ in pairs], islands, cfg, cache):
         need = floor + sum(cfg.pack_first_seam_gain if d["first_seam"] else cfg.pack_cut_gain for d in pairs[j][1])
         got = best_packed([pairs[j][0]], [m], cfg, cache, need)
-        if got is not None and got.utilization >= need and (best is None or got.utilization > best[0].utilization):
+        if got is not None and (best is None or got.utilization > best[0].utilization):
             best = (got, pairs[j][1])
     return best
 
@@ -236,11 +232,11 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
             break
         ranked = _ranked_halvings(best.islands, comp, cfg, cache)
         got = _best_halving(ranked, cfg, best.utilization + cfg.pack_cut_gain, cache)
-        if got is None or got[0].utilization < best.utilization + cfg.pack_cut_gain:
+        if got is None:
             # a part's first seam (it flattened as one island) must buy more
             first = _ranked_halvings(best.islands, comp, cfg, cache, True)
             got = _best_halving(first, cfg, best.utilization + cfg.pack_first_seam_gain, cache)
-            if got is None or got[0].utilization < best.utilization + cfg.pack_first_seam_gain:
+            if got is None:
                 fell_short = ranked
                 break
         best = got[0]
@@ -254,7 +250,7 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         # delivered: quarter-turned too
         missed = _best_halving(fell_short, cfg, 0.0, cache)
         turned_halving = None if missed is None else quarter_turned(missed[0].islands, cfg, cache,
-                                                                      best.utilization + cfg.pack_cut_gain)
+                                                                     best.utilization + cfg.pack_cut_gain)
         if turned_halving is not None:
             best = turned_halving
             stats["halvings"].append({**missed[1], "utilization": best.utilization, "after_quarter_turns": True})

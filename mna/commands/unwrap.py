@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from mnacore.errors import MnaError
@@ -115,8 +116,6 @@ def run_unwrap(args: argparse.Namespace) -> int:
     if fit_info["fit"] == "reused" and fallback > REUSED_FALLBACK_WARNING:
         # a fit of this mesh reaches every part it sampled: most of the area out of reach means
         # charts of another surface, or of this one in other units or at another place
-        import sys
-
         print(f"mna unwrap: warning: the charts of {args.run} reach only {100 * (1 - fallback):.0f} % of the mesh's "
               "area (the rest took the classical fallback): was that run fitted to this mesh, in these units and "
               "at this place?", file=sys.stderr)

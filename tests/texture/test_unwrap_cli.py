@@ -224,4 +224,3 @@ def test_a_run_that_does_not_reach_the_mesh_is_reported(tmp_path, capsys):
     doc = json.loads((tmp_path / "out" / "unwrap.json").read_text())
     assert doc["assignment"]["fallback_area_fraction"] == pytest.approx(1.0)
     assert doc["uv_metrics"]["flipped_faces"] == 0 and doc["uv_metrics"]["uv_overlap_percent"] == 0.0
-

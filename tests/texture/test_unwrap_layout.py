@@ -308,9 +308,9 @@ def _l_island(nx: int, ny: int, label: int) -> Island:
 def test_a_layout_whose_plan_clears_the_floor_but_whose_packing_does_not_is_refused():
     """Four L islands turned to their minimum rectangles, xatlas free to turn them by quarter
     turns: its coarse plan turns (and so mirrors) some, and kept unmirrored they pack below
-    the plan. With the floor between the two the packing
-    did not pass it, so :func:`best_packed` returns None (its callers keep what they had);
-    below the packing it returns that packing."""
+    the plan. With the floor between the two the packing did not pass it, so
+    :func:`best_packed` returns None (its callers keep what they had); below the packing it
+    returns that packing."""
     from texture.layout_packing import PACK_MODES, best_packed, outline_arrays, turned
     from texture.scale_search import plan_layouts
 
