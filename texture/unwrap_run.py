@@ -48,8 +48,26 @@ def load_unwrap_input(path: str | os.PathLike) -> UnwrapInput:
     path = Path(path)
     mesh = read_mesh(path, keep_vertex_order=True)
     vertices, faces = validate_mesh(mesh.vertices, mesh.faces, path.name)
-    uv = getattr(mesh.visual, "uv", None)
-    return UnwrapInput(mesh, vertices, faces, uv is not None and len(uv) > 0, str(path))
+    return UnwrapInput(mesh, vertices, faces, _carries_uv(path, mesh), str(path))
+
+
+def _has_uv(mesh) -> bool:
+    uv = getattr(getattr(mesh, "visual", None), "uv", None)
+    return uv is not None and len(uv) > 0
+
+
+def _carries_uv(path: Path, mesh) -> bool:
+    """Whether the file holds texture coordinates anywhere. A glTF scene is read as one mesh
+    (its nodes' geometry in the scene frame), and where some of its meshes carry UVs and some
+    do not, trimesh drops them all in that one mesh: each of the scene's own meshes is asked."""
+    import trimesh
+
+    if _has_uv(mesh):
+        return True
+    if path.suffix.lower() not in (".glb", ".gltf"):
+        return False
+    scene = trimesh.load(path, process=False)  # read once already: it loads
+    return any(_has_uv(g) for g in (scene.geometry.values() if isinstance(scene, trimesh.Scene) else [scene]))
 
 
 def read_unwrap_json(out: str | os.PathLike) -> dict:

@@ -112,6 +112,9 @@ def run_unwrap(args: argparse.Namespace) -> int:
           f"{m['distortion_metric']:.3f}, flipped {m['flipped_faces']}, overlap {m['uv_overlap_percent']:.2f} %, "
           f"utilization {m['utilization']:.2f}, fallback area {doc['assignment']['fallback_area_fraction']:.3f}, "
           f"{doc['timings']['unwrap_total']:.1f} s -> {Path(args.out) / 'mesh.obj'}, mesh.glb")
+    if inp.had_uv:
+        print(f"the texture coordinates {Path(args.mesh).name} carried were replaced (mesh.obj and mesh.glb hold the new "
+              "ones; the input file is unchanged)")
     fallback = doc["assignment"]["fallback_area_fraction"]
     if fit_info["fit"] == "reused" and fallback > REUSED_FALLBACK_WARNING:
         # a fit of this mesh reaches every part it sampled: most of the area out of reach means

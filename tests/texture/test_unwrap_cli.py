@@ -224,3 +224,41 @@ def test_a_run_that_does_not_reach_the_mesh_is_reported(tmp_path, capsys):
     doc = json.loads((tmp_path / "out" / "unwrap.json").read_text())
     assert doc["assignment"]["fallback_area_fraction"] == pytest.approx(1.0)
     assert doc["uv_metrics"]["flipped_faces"] == 0 and doc["uv_metrics"]["uv_overlap_percent"] == 0.0
+
+
+@pytest.mark.parametrize("kind", ["obj", "glb_scene"])
+def test_texture_coordinates_the_input_carried_are_replaced_and_said_so(tmp_path, capsys, kind):
+    """An OBJ with ``vt`` lines, and a glTF scene where only one of two meshes carries UVs
+    (read as one mesh, trimesh drops them): unwrap.json and the summary say they were replaced."""
+    run = write_sphere_run(tmp_path / "run", G=32)
+    sphere = trimesh.load(run / "input.ply", process=False)
+    rng = np.random.default_rng(0)
+    if kind == "obj":
+        textured = trimesh.Trimesh(sphere.vertices, sphere.faces, process=False,
+                                   visual=trimesh.visual.TextureVisuals(uv=rng.random((len(sphere.vertices), 2))))
+        path = tmp_path / "textured.obj"
+        textured.export(path)
+    else:
+        top = sphere.triangles_center[:, 2] > sphere.centroid[2]
+        scene = trimesh.Scene()
+        for keep, uv in ((top, True), (~top, False)):
+            part = sphere.submesh([np.flatnonzero(keep)], append=True)
+            if uv:
+                part.visual = trimesh.visual.TextureVisuals(uv=rng.random((len(part.vertices), 2)))
+            scene.add_geometry(part)
+        path = tmp_path / "scene.glb"
+        scene.export(path)
+    assert main(["unwrap", str(path), "-o", str(tmp_path / "out"), "--run", str(run), "--no-progress", *SMALL]) == 0
+    assert "were replaced" in capsys.readouterr().out
+    doc = json.loads((tmp_path / "out" / "unwrap.json").read_text())
+    assert doc["input_uv_replaced"] is True
+    assert doc["uv_metrics"]["flipped_faces"] == 0 and doc["uv_metrics"]["uv_overlap_percent"] == 0.0
+    back = read_back(tmp_path / "out" / "mesh.glb")
+    assert len(back.faces) == len(sphere.faces)
+
+
+def test_an_input_without_texture_coordinates_says_nothing_of_them(unwrapped, capsys):
+    run, _, _ = unwrapped
+    out = Path(str(unwrapped[1]) + "_again")
+    assert main(["unwrap", str(run / "input.ply"), "-o", str(out), "--run", str(run), "--no-progress", *SMALL]) == 0
+    assert "replaced" not in capsys.readouterr().out
