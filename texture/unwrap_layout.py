@@ -37,6 +37,15 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    pay, that halving is quarter-turned too and kept when it gains ``cfg.pack_cut_gain`` over
    the result: the gain a halving must buy, measured as the layouts will be delivered (spot:
    0.582 -> 0.627, one more island; genus2's last halving gains 0.016 and is not kept).
+   With more than ``EXHAUSTIVE_TURN_ISLANDS`` islands each guess packs them all, and the 256
+   sets cost 5-25 times what a one-island-at-a-time search does
+   (:func:`texture.layout_packing._turn_sets`), which packed as well there. Quarter-turn
+   packing, all sets -> one at a time, on unseen scattered parts (one island each): 200
+   spheres, none above the 0.387 floor -> 0.391, 33.5 -> 4.2 s; 60 parts 0.484 -> 0.486,
+   13.5 -> 2.5 s; 40 parts 0.603 -> 0.608; 25 parts 0.591 -> 0.598; the truck's 16
+   islands 0.629 -> none above its 0.622 floor, 4.8 -> 1.3 s (its unwrap 0.6685 -> 0.6674).
+   On spot's four islands it packed 0.024 below all sets: up to eight islands every set is
+   guessed.
 4. **Two cuts at once** (:func:`_paired_halvings`), where the result is still below
    ``cfg.pack_target`` after a round in which no single halving paid: some cuts pay only in
    pairs (two like parts halved one at a time keep the atlas's shape), so even halvings are

@@ -5,7 +5,15 @@ import numpy as np
 import pytest
 
 from mnacore.triangles import signed_areas
-from texture.layout_packing import island_arrays, min_rect_rotation, quarter_turn
+from texture.layout_packing import (
+    EXHAUSTIVE_TURN_ISLANDS,
+    TURN_PASSES,
+    TURNED_ISLANDS,
+    _turn_sets,
+    island_arrays,
+    min_rect_rotation,
+    quarter_turn,
+)
 from texture.unwrap import UnwrapConfig
 from texture.unwrap_islands import Island
 from texture.unwrap_layout import choose_layout
@@ -190,6 +198,51 @@ def test_two_right_triangles_turned_half_a_turn_apart_pack_as_a_square():
     offsets = np.cumsum([0] + [len(t.uv) for t in got.islands])
     right = [px[offsets[k] + int(np.argmin(np.linalg.norm(tris[k].uv, axis=1)))] for k in range(2)]
     assert np.abs(right[0] - right[1]) == pytest.approx(np.ptp(px, axis=0), rel=0.05)
+
+
+def test_turn_sets_are_all_guessed_for_few_islands_and_searched_one_island_at_a_time_for_many():
+    """Up to EXHAUSTIVE_TURN_ISLANDS islands every set is guessed; above, the one-at-a-time
+    search guesses at most 1 + 12 * TURN_PASSES sets and finds the best of a score that adds up
+    over the islands (each island's best turn, whatever the others'), and turns nothing
+    without a gain."""
+    big = np.arange(TURNED_ISLANDS)
+    want = (2, 1, 3, 0)
+    calls = []
+
+    def guess(keys):
+        calls.extend(keys)
+        return [0.5 - 0.01 * sum((q - w) % 4 for q, w in zip(k, want)) for k in keys]
+
+    every = _turn_sets(big, EXHAUSTIVE_TURN_ISLANDS, guess)
+    assert len(every) == 4 ** TURNED_ISLANDS == len(calls)
+    calls.clear()
+    some = _turn_sets(big, EXHAUSTIVE_TURN_ISLANDS + 1, guess)
+    assert len(calls) == len(some) <= 1 + 12 * TURN_PASSES
+    assert max(some, key=some.get) == want and some[want] == pytest.approx(0.5)
+    flat = _turn_sets(big, EXHAUSTIVE_TURN_ISLANDS + 1, lambda keys: [0.5] * len(keys))
+    assert len(flat) == 1 + 3 * TURNED_ISLANDS  # each island's other three turns, guessed once
+
+
+def test_many_islands_still_find_the_turn_that_nests_two_large_ones():
+    """The two right triangles of the test above plus eight small squares (ten islands: the
+    one-at-a-time search): the half turn that makes the triangles a square is one island's
+    turn, and the search finds it (xatlas's own turns pack the set below 0.5)."""
+    tris = [_right_triangle(8, 0.125, 0), _right_triangle(8, 0.125, 1)]
+    squares = []
+    for k in range(2, 10):
+        g = _grid_island(2, 2, 0.06)
+        nf, nv = len(g.faces), len(g.uv)
+        squares.append(Island(g.faces, g.uv, g.xyz + [5.0 * k, 0.0, 0.0], np.arange(nf) + 1000 * k,
+                              np.arange(nv) + 1000 * k, k))
+    islands = tris + squares
+    assert len(islands) > EXHAUSTIVE_TURN_ISLANDS
+    comp = np.repeat(np.arange(len(islands)), [len(i.faces) for i in islands])
+    got = choose_layout(islands, comp, UnwrapConfig(resolution=256, padding=4, pack_max_cuts=0))
+    assert got.stats["utilization_turned_as_xatlas"] < 0.5
+    assert got.packing.utilization > 0.6
+    uv, faces, island = island_arrays(got.islands)
+    assert (signed_areas(got.packing.uv, faces) > 0).all()
+    assert verify_packing(got.packing.uv, faces, island, 256)[0] == 0
 
 
 def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned():
