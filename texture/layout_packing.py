@@ -227,7 +227,8 @@ def _turn_sets(big: np.ndarray, n: int, guess) -> dict[tuple, float]:
 
     def add(keys):
         new = [k for k in dict.fromkeys(keys) if k not in sets]
-        sets.update(zip(new, guess(new)))
+        if new:
+            sets.update(zip(new, guess(new)))
 
     if n <= EXHAUSTIVE_TURN_ISLANDS:
         add(list(itertools.product(range(4), repeat=len(big))))
