@@ -219,9 +219,9 @@ def _turn_sets(big: np.ndarray, n: int, guess) -> dict[tuple, float]:
     search: from no turns, each island's four turns in turn with the others held at the best so
     far, :data:`TURN_PASSES` times (at most 1 + 12 * passes sets, against 256).
 
-    The one-at-a-time search may miss a set only a joint turn finds: on spot's 3 and 4 islands
-    it ended 0.014 and 0.024 below the whole search, and the unwrap with it at 0.574 against
-    0.630. With many islands it guessed as well where the whole search cost 5-25 times more
+    The one-at-a-time search may miss a set only a joint turn finds: on spot's 3 islands it
+    packed 0.014 below the whole search (0.568 against 0.582), and the unwrap with it ended at
+    0.574 against 0.630. With many islands it guessed as well where the whole search cost 5-25 times more
     (:mod:`texture.unwrap_layout` has the numbers)."""
     sets: dict[tuple, float | None] = {}
 

@@ -44,8 +44,8 @@ compared (as the export's cut rounds do, :mod:`texture.layout_search`):
    spheres, none above the 0.387 floor -> 0.391, 33.5 -> 4.2 s; 60 parts 0.484 -> 0.486,
    13.5 -> 2.5 s; 40 parts 0.603 -> 0.608; 25 parts 0.591 -> 0.598; the truck's 16
    islands 0.629 -> none above its 0.622 floor, 4.8 -> 1.3 s (its unwrap 0.6685 -> 0.6674).
-   On spot's four islands it packed 0.024 below all sets: up to eight islands every set is
-   guessed.
+   On spot's three islands it packed 0.014 below all sets (its unwrap 0.574 against 0.630):
+   up to eight islands every set is guessed.
 4. **Two cuts at once** (:func:`_paired_halvings`), where the result is still below
    ``cfg.pack_target`` after a round in which no single halving paid: some cuts pay only in
    pairs (two like parts halved one at a time keep the atlas's shape), so even halvings are
