@@ -212,7 +212,7 @@ def quarter_turn(isl: Island, k: int) -> Island:
     return replace(isl, uv=_quarter(isl.uv - c, k) + c)
 
 
-def _turn_sets(big: np.ndarray, n: int, guess) -> dict[tuple, float]:
+def _turn_sets(big: np.ndarray, n: int, guess) -> dict[tuple, float | None]:
     """Sets of quarter turns of the islands ``big`` (others unturned) -> ``guess(sets)``'s
     utilisation of each (None: not packed). Every set (4^len(big)) where ``n`` (the islands
     packed by each guess) is at most :data:`EXHAUSTIVE_TURN_ISLANDS`; above, a coordinate
@@ -221,8 +221,8 @@ def _turn_sets(big: np.ndarray, n: int, guess) -> dict[tuple, float]:
 
     The one-at-a-time search may miss a set only a joint turn finds: on spot's 3 islands it
     packed 0.014 below the whole search (0.568 against 0.582), and the unwrap with it ended at
-    0.574 against 0.630. With many islands it guessed as well where the whole search cost 5-25 times more
-    (:mod:`texture.unwrap_layout` has the numbers)."""
+    0.574 against 0.630. With many islands it guessed as well where the whole search cost 5-25
+    times more (:mod:`texture.unwrap_layout` has the numbers)."""
     sets: dict[tuple, float | None] = {}
 
     def add(keys):
