@@ -407,6 +407,8 @@ def relax_multires(xyz, uv, faces, cfg, border: np.ndarray, relax_coarse) -> tup
     # SLIM itself on the coarse disk: a Delaunay triangulation of scattered vertices is no
     # mesh to flatten in two resolutions again (its irregular faces folded every transfer)
     coarse_uv, coarse_stats = relax_coarse(p, start, cf, replace(cfg, multires_faces=0))
+    if 0 < cfg.coarse_excess_limit < coarse_stats["excess"]:  # a finer map seldom flattens better
+        return None
     adj = vertex_adjacency(faces, len(xyz))
     edges = boundary_edges(faces)
     arap = _Arap(xyz, faces)

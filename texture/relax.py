@@ -65,6 +65,10 @@ class RelaxConfig:
     :func:`texture.flatten.relax_disk`."""
     slim_max_faces: int = 0
     """Where that fails, disks above this many faces keep their start (0 = SLIM at any size)."""
+    coarse_excess_limit: float = 0.0
+    """A disk flattened in two resolutions whose coarse map's energy excess is above this is
+    not refined (it fails as if a step had: :func:`texture.multires.relax_multires`), for a
+    caller that refuses a map past it anyway (a merge trial: :mod:`texture.merge`; 0 = none)."""
 
 
 def _local_jacobian_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple[float, float]:

@@ -111,9 +111,10 @@ class UnwrapConfig:
     """Most slits per island."""
     merge_max_faces: int = 20_000
     """Neighbouring islands whose union flattens within ``slit_target`` with shorter seams
-    are merged (:mod:`texture.merge`); unions above this many faces are not tried, for time
-    only (0 = off): a trial flattens, relaxes and slits the union, 2-10 s at 5-12k faces,
-    55 s for a 58k-face union of the 111k-face bunny (the two-resolution path)."""
+    are merged (:mod:`texture.merge`; 0 = off); unions above this many faces get a cheaper
+    trial, and only where it can pass (a disk of low total curvature), for time only: a trial
+    flattens, relaxes and slits the union, 2-10 s at 5-12k faces, 55 s for a 58k-face union of
+    the 111k-face bunny."""
     whole_max_faces: int = 5_000
     """Components the charts split into several regions are first tried whole (one island)
     when they have at most this many faces (:func:`_whole_components`)."""

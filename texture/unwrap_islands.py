@@ -37,6 +37,8 @@ class Island:
     holed: bool = False
     """Flattened uncut with its holes (:func:`texture.flatten.holed_map`, within the bound it
     was given): the disk steps (SLIM, slits) leave it as it is."""
+    slits: int = 0
+    """Slits cut into it (:func:`slit_islands`): its relaxed map alone missed ``cfg.slit_target``."""
 
 
 def _fiedler_halves(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray] | None:
@@ -253,10 +255,11 @@ def prefer_whole(islands: list[Island], trials: dict, comp: np.ndarray) -> tuple
     return islands, swapped
 
 
-def relax_config(cfg) -> RelaxConfig:
-    """The SLIM options of an :class:`texture.unwrap.UnwrapConfig`."""
+def relax_config(cfg, coarse_excess_limit: float = 0.0) -> RelaxConfig:
+    """The SLIM options of an :class:`texture.unwrap.UnwrapConfig` (``coarse_excess_limit``:
+    :attr:`texture.relax.RelaxConfig.coarse_excess_limit`)."""
     return RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain, multires_faces=cfg.multires_faces,
-                       slim_max_faces=cfg.slim_max_faces)
+                       slim_max_faces=cfg.slim_max_faces, coarse_excess_limit=coarse_excess_limit)
 
 
 def _relax_job(job, _shared=None):
@@ -264,9 +267,10 @@ def _relax_job(job, _shared=None):
     return relax_disk(xyz, uv, faces, rcfg)
 
 
-def relax_islands(islands: list[Island], cfg) -> dict:
-    """SLIM every island (:func:`texture.flatten.relax_disk`), largest first, in parallel processes."""
-    rcfg = relax_config(cfg)
+def relax_islands(islands: list[Island], cfg, coarse_excess_limit: float = 0.0) -> dict:
+    """SLIM every island (:func:`texture.flatten.relax_disk`), largest first, in parallel
+    processes (``coarse_excess_limit``: :attr:`texture.relax.RelaxConfig.coarse_excess_limit`)."""
+    rcfg = relax_config(cfg, coarse_excess_limit)
     order = sorted((i for i in range(len(islands)) if not islands[i].holed), key=lambda i: -len(islands[i].faces))
     jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
     done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
@@ -304,6 +308,7 @@ def slit_islands(islands: list[Island], cfg, max_length: list[float] | None = No
         isl = islands[i]
         isl.faces, isl.uv, isl.xyz = r.faces, r.uv, isl.xyz[r.source]
         isl.work_vertex = isl.work_vertex[r.source]
+        isl.slits += r.slits
         st["islands_slit"] += 1
         st["slits"] += r.slits
     return st

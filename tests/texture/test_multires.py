@@ -177,3 +177,23 @@ def test_a_disk_with_long_straight_borders_gets_its_coarse_copy():
     new, stats = got
     assert stats["mode"] == "multires" and _injective(new, faces)
     assert energy_excess(xyz, uv, faces) > 1.0 and stats["excess"] < 0.1
+
+
+def test_a_coarse_map_past_the_callers_limit_is_not_refined():
+    """``coarse_excess_limit``: a curved cap (excess about 0.25) is refused after its coarse
+    SLIM when the limit is below that, refined as usual when above; with SLIM capped below its
+    size, relax_disk then keeps the start (a merge trial's setting)."""
+    from dataclasses import replace
+
+    sphere = trimesh.creation.icosphere(5)
+    keep = sphere.triangles_center[:, 2] > -0.2
+    used, inv = np.unique(sphere.faces[keep], return_inverse=True)
+    xyz, faces = sphere.vertices[used], inv.reshape(-1, 3)
+    uv = _start(xyz, faces)
+    border = ordered_boundary(faces)
+    got = relax_multires(xyz, uv, faces, replace(CFG, coarse_excess_limit=1.0), border, relax_disk)
+    assert got is not None and 0.1 < got[1]["excess"] < 1.0
+    assert relax_multires(xyz, uv, faces, replace(CFG, coarse_excess_limit=0.1), border, relax_disk) is None
+    capped = replace(CFG, multires_faces=1000, slim_max_faces=1000, coarse_excess_limit=0.1)
+    new, stats = relax_disk(xyz, uv, faces, capped)
+    assert stats["mode"] == "start" and stats["iterations"] == 0 and (new == uv).all()

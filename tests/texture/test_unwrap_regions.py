@@ -204,3 +204,91 @@ def test_merge_tries_the_pairs_a_failed_round_left_out():
     assert len(merged) == 2 and sorted(len(i.faces) for i in merged) == [2 * n_t, n_h]
     tube = next(i for i in merged if len(i.faces) == 2 * n_t)
     assert energy_excess(tube.xyz, tube.uv, tube.faces) < 1e-3
+
+
+def _cap(degrees: float, subdivisions: int = 4):
+    """The spherical cap of a unit icosphere within ``degrees`` of its pole: (xyz, faces)."""
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions)
+    keep = s.triangles_center[:, 2] > np.cos(np.radians(degrees))
+    used, inv = np.unique(s.faces[keep], return_inverse=True)
+    return np.asarray(s.vertices)[used], inv.reshape(-1, 3)
+
+
+def test_total_curvature_is_gauss_bonnet():
+    """On a disk the interior angle defects sum to 2 pi less the border's turning (exactly, in
+    the discrete sense), a spherical cap's to about 2 pi (1 - cos t), a cylinder's to 0."""
+    import trimesh
+
+    from texture.merge import total_curvature
+    from texture.relax import boundary_edges
+
+    for degrees in (60.0, 120.0):
+        xyz, f = _cap(degrees, 5)
+        angles = trimesh.triangles.angles(xyz[f])
+        sums = np.bincount(f.ravel(), angles.ravel(), minlength=len(xyz))
+        border = np.unique(boundary_edges(f))
+        turning = float((np.pi - sums[border]).sum())
+        np.testing.assert_allclose(total_curvature(xyz, f), 2 * np.pi - turning, atol=1e-9)
+        np.testing.assert_allclose(total_curvature(xyz, f), 2 * np.pi * (1 - np.cos(np.radians(degrees))), rtol=0.05)
+    tube = cylinder()
+    assert abs(total_curvature(np.asarray(tube.vertices), np.asarray(tube.faces))) < 1e-9
+
+
+def test_cap_curvature_is_where_a_spherical_cap_reaches_the_bound():
+    """CAP_CURVATURE rests on the flattening of spherical caps: one of 0.85 times that total
+    curvature flattens within CAP_EXCESS, one of 1.15 times does not."""
+    from mnacore.triangles import signed_areas, triangle_areas
+    from texture.flatten import relax_disk, tutte
+    from texture.merge import CAP_CURVATURE, CAP_EXCESS
+    from texture.relax import RelaxConfig
+
+    excess = []
+    for k in (0.85 * CAP_CURVATURE, 1.15 * CAP_CURVATURE):
+        xyz, f = _cap(np.degrees(np.arccos(1 - k / (2 * np.pi))))
+        uv = tutte(xyz, f)
+        if signed_areas(uv, f).sum() < 0:
+            f = f[:, ::-1]
+            uv = tutte(xyz, f)
+        uv *= np.sqrt(triangle_areas(xyz, f).sum() / signed_areas(uv, f).sum())
+        excess.append(relax_disk(xyz, uv, f, RelaxConfig(iterations=200, min_gain=1e-5))[1]["excess"])
+    assert excess[0] < CAP_EXCESS < excess[1], excess
+
+
+def _split_in_x(v, f, cfg):
+    c = v[f].mean(1)
+    islands = []
+    for lab, sel in enumerate((np.flatnonzero(c[:, 0] >= 0), np.flatnonzero(c[:, 0] < 0))):
+        islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
+    relax_islands(islands, cfg)
+    return islands
+
+
+def test_a_union_above_the_face_cap_is_tried_only_where_it_can_pass():
+    """Above ``merge_max_faces`` a union gets no cut and no slits, so it is tried only where it
+    can pass: the halves of a gently waved sheet (a disk of little curvature) merge; the halves
+    of a cylinder (an annulus), of a 100-degree cap (curvature 7.4 > CAP_CURVATURE), or of the
+    sheet with one half slit are not tried. Under the cap each of them is tried."""
+    cfg = UnwrapConfig(slim_iterations=100)
+    sheet = shapes.sheet(size=1.0, resolution=41)
+    v = np.asarray(sheet.vertices).copy()
+    v[:, 2] += 0.03 * np.sin(4 * np.pi * v[:, 0]) * np.sin(4 * np.pi * v[:, 1])
+    f = np.asarray(sheet.faces)
+    tube = cylinder(rows=8, sections=32)
+    cap_v, cap_f = _cap(100.0)
+    cases = {"sheet": (v, f), "tube": (np.asarray(tube.vertices), np.asarray(tube.faces)), "cap": (cap_v, cap_f)}
+    for name, (xyz, faces) in cases.items():
+        for cap_faces, tried in ((len(faces) - 1, name == "sheet"), (len(faces), True)):
+            islands = _split_in_x(xyz, faces, cfg)
+            assert len(islands) == 2
+            merged, st = merge_islands(islands, xyz, faces, face_adjacency(xyz, faces), replace(cfg, merge_max_faces=cap_faces))
+            assert st["tried"] == int(tried), (name, cap_faces, st["trials"])
+            if name == "sheet":
+                (isl,) = merged
+                assert energy_excess(isl.xyz, isl.uv, isl.faces) <= cfg.slit_target
+                assert island_seam(isl, interior_edges(faces)) == 0.0  # a disk: no cut
+    islands = _split_in_x(v, f, cfg)
+    islands[0].slits = 1
+    _, st = merge_islands(islands, v, f, face_adjacency(v, f), replace(cfg, merge_max_faces=len(f) - 1))
+    assert st["tried"] == 0
