@@ -292,3 +292,35 @@ def test_a_union_above_the_face_cap_is_tried_only_where_it_can_pass():
     islands[0].slits = 1
     _, st = merge_islands(islands, v, f, face_adjacency(v, f), replace(cfg, merge_max_faces=len(f) - 1))
     assert st["tried"] == 0
+
+
+def test_a_large_part_that_can_flatten_whole_is_tried_whole_first():
+    """Four strips of a gently waved sheet above the face cap: tried whole in one trial (four
+    islands, no cut: seam 0) rather than grown a pair at a time, which flattens it again at
+    every round; with one strip slit, the whole part is not tried and the pairs are."""
+    cfg = replace(UnwrapConfig(slim_iterations=100), merge_max_faces=1000)
+    sheet = shapes.sheet(size=1.0, resolution=41)
+    v = np.asarray(sheet.vertices).copy()
+    v[:, 2] += 0.03 * np.sin(4 * np.pi * v[:, 0]) * np.sin(4 * np.pi * v[:, 1])
+    f = np.asarray(sheet.faces)
+    band = np.digitize(v[f].mean(1)[:, 0], [-0.25, 0.0, 0.25])
+
+    def strips():
+        out = []
+        for lab in range(4):
+            sel = np.flatnonzero(band == lab)
+            out += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
+        relax_islands(out, cfg)
+        return out
+
+    islands = strips()
+    assert len(islands) == 4
+    merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    assert [(t["faces"], t["islands"], t["merged"]) for t in st["trials"]] == [(len(f), 4, True)]
+    (isl,) = merged
+    assert st["merges"] == 3 and island_seam(isl, interior_edges(f)) == 0.0
+    assert energy_excess(isl.xyz, isl.uv, isl.faces) <= cfg.slit_target
+    islands = strips()
+    islands[0].slits = 1
+    _, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    assert all(t["islands"] == 2 for t in st["trials"]) and st["tried"] >= 1
