@@ -27,13 +27,14 @@ SLIM at about a second per iteration at 50k faces): no slits, and no full-resolu
 the two-resolution flattening (:mod:`texture.multires`) fails or its coarse map already misses
 the bound. It is tried only where that can pass (:func:`_cheap_union`): neither island was slit,
 the two make a disk (no cut), and the union's total curvature is at most that of a spherical
-cap that flattens within the bound (:data:`CAP_CURVATURE`). An unseen 65k-face heightfield
-(gentle waves: total curvature under 1 radian for every union) went from 5 islands, seam 7.0,
-utilisation 0.50 to 2 islands, seam 0.78, utilisation 0.80, and 31.8 -> 19.1 s; the 1M-face
-bunny's unions (7.9 and 8.7 radians) are not tried (they failed, at 37 s, when they were).
+cap that flattens within the bound (:data:`CAP_CURVATURE`). The 1M-face bunny's unions
+(7.9 and 8.7 radians) are not tried (they failed, at 37 s, when they were).
 A part of three or more islands that passes the same test whole is tried whole in the first
 round (:func:`_whole_groups`): a pair at a time, a 1M-face heightfield was flattened again
 at every round as its union grew (656k, 957k and 1M faces: 121 s; whole: one trial, 49 s).
+With both, an unseen 65k-face heightfield (gentle waves: total curvature under 1 radian for
+every union) went from 5 islands, seam 7.0, utilisation 0.50 to 2 islands, seam 0.79,
+utilisation 0.80, and 31.8 -> 11.3 s (benchmarks/RESULTS.md).
 A trial relaxes with at most ``MERGE_ITERATIONS`` SLIM
 iterations (stopping early only makes the bound harder to meet) and takes as many slits as
 any island may (``cfg.max_slits``): the seam test above already makes a union pay for every
