@@ -14,7 +14,13 @@ The stages, each deciding once:
    which xatlas still places the islands (:func:`_grown`): the searches stop within 1 % of
    the largest scale they bracket (a coarse search's tolerance), which left up to 2 % of
    utilisation unused;
-5. if xatlas never gave a valid placement (e.g. an island it always splits), a shelf packer
+5. xatlas's exhaustive placement (``bruteForce``) is used at the coarse resolution only
+   (:func:`full_options`): its cost grows with the atlas's texels times each island's, so a
+   full-resolution call costs about 250x a coarse one (a 5-island outline of 3,334 faces:
+   0.08 s at 512, 6-7 s at 2048, 41 s unbounded), and a full-resolution search (stage 2, or
+   keeping islands unmirrored) took 80 s where the coarse plan took 3 s; such a search runs
+   with xatlas's ordinary placement instead;
+6. if xatlas never gave a valid placement (e.g. an island it always splits), a shelf packer
    of padded bounding boxes (:func:`texture.shelf.shelf_pack`) places the islands: any
    input packs.
 """
@@ -81,6 +87,14 @@ def _checked(isl: IslandSet, tpu: float, px: np.ndarray, options, resolution: in
     return Candidate(util, tpu, px, options) if overlap == 0 else None
 
 
+def full_options(options: dict | None) -> dict | None:
+    """``options`` for a full-resolution xatlas call: without ``bruteForce`` (stage 5 of the
+    module docstring)."""
+    if not options or "bruteForce" not in options:
+        return options
+    return {k: v for k, v in options.items() if k != "bruteForce"}
+
+
 def _better(a: Candidate | None, b: Candidate | None) -> Candidate | None:
     return b if b is not None and (a is None or b.utilization > a.utilization) else a
 
@@ -98,6 +112,7 @@ def _search_all(isl: IslandSet, resolution: int, padding: int, searches: list, m
     """(best valid :class:`Candidate` or None, xatlas calls) over ``searches`` (options, start, shrink)."""
     best, attempts = None, 0
     for opts, start, shrink in searches:
+        opts = full_options(opts)
         found = search(isl, resolution, padding, opts, max_attempts, start, shrink)
         if found is not None:
             attempts += found.attempts
@@ -136,8 +151,8 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     """Pack islands ``island (F,)`` of the UV mesh ``(uv (V,2), faces (F,3))``; see module docstring.
 
     Every vertex must belong to faces of a single island (true for split-vertex meshes).
-    ``options`` overrides xatlas ``PackOptions`` fields (e.g. ``{"bruteForce": True}``) and
-    is searched at full resolution. By default the policy's option sets are compared by a
+    ``options`` overrides xatlas ``PackOptions`` fields (e.g. ``{"rotate_charts": False}``) and
+    is searched at full resolution (``bruteForce`` is dropped there: :func:`full_options`). By default the policy's option sets are compared by a
     coarse search (or the given ``plan``) and only the best is used. Never fails on valid
     arrays: folded, flipped, degenerate or oversized islands all pack, no island overlaps
     another or comes back mirrored, and all stay inside the unit square.
@@ -180,7 +195,7 @@ def _without_mirrors(isl: IslandSet, resolution: int, padding: int, best: Candid
             found = _checked(isl, t, px * resolution / res, best.options, resolution)
             if found is not None:
                 return found
-    plain = {**(best.options or {}), "rotate_charts": False}
+    plain = {**full_options(best.options or {}), "rotate_charts": False}
     found = search(isl, resolution, padding, plain, policy.max_attempts, None, SHRINK)
     if found is None:
         return None

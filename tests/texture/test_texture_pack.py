@@ -427,3 +427,40 @@ def test_verify_packing_counts_shared_texels_exactly():
         # one island: overlapping faces are a fold, not a clash; the covered fraction is the same
         one = verify_packing(uv.reshape(-1, 2), faces, np.zeros(60, np.int64), res)
         assert one == (0, got[1])
+
+
+def test_exhaustive_placement_runs_at_the_coarse_resolution_only(monkeypatch):
+    """xatlas's ``bruteForce`` costs about 250x more per call at full resolution than at the
+    coarse one (80 s for one layout's full-resolution search): a plan made with it is used as
+    is, and every full-resolution search (here: keeping islands unmirrored once the coarse
+    tries are spent, ``unmirror_steps=0``) runs without it, and the packing stays valid."""
+    import texture.placement as placement
+    import texture.scale_search as scale_search
+
+    calls = []
+    real = placement.xatlas_pack
+
+    def recorded(uv, faces, island, resolution, padding, tpu, options=None):
+        calls.append((int(padding), bool((options or {}).get("bruteForce"))))  # padding 1: coarse
+        return real(uv, faces, island, resolution, padding, tpu, options)
+
+    monkeypatch.setattr(placement, "xatlas_pack", recorded)
+    monkeypatch.setattr(scale_search, "xatlas_pack", recorded)
+    uv, faces, island = _long_thin_islands()
+    isl = IslandSet.of(uv, faces, island)
+    brute = {"bruteForce": True}
+    plan = plan_layouts([(uv, faces, island)], candidates=(brute,), resolution=1024, padding=4)[0]
+    assert plan.options == brute and mirrored_islands(isl, plan.uv), "the plan (turns allowed) mirrors some island"
+    assert calls and all(pad == 1 and b for pad, b in calls)  # the plan: coarse, exhaustive
+    calls.clear()
+    pk = pack_islands(uv, faces, island, resolution=1024, padding=4, plan=plan,
+                      policy=SearchPolicy(unmirror_steps=0))
+    full = [b for pad, b in calls if pad != 1]
+    assert full and not any(full), calls
+    assert pk.packer == "xatlas" and mirrored_islands(isl, pk.uv) == []
+    assert_valid_packing(pk, uv, faces, island)
+    calls.clear()
+    pack_islands(uv, faces, island, resolution=1024, padding=4, options=brute)  # asked for at full resolution
+    full = [b for pad, b in calls if pad != 1]
+    assert full and not any(full)
+    assert pack.full_options(brute) == {} and pack.full_options({**brute, "rotate_charts": False}) == {"rotate_charts": False}
