@@ -6,8 +6,14 @@ oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered
 
 - duplicated vertices (same position within ``WELD_TOL`` of the bounding-box diagonal)
   are welded, so a mesh saved with split vertices unwraps as one surface;
-- non-manifold edges (used by more than two faces) and edges whose two faces disagree
-  on orientation are *cut* (their faces are not connected across them), and
+- faces wound against their neighbours are turned, in the working mesh only, to the
+  winding of most of their patch's area (:func:`consistent_winding`): a surface whose
+  winding was scrambled (an STL or CAD export, a merge of flipped pieces) unwraps as the
+  surface it is, not as the pieces its flips leave (a sphere with half its faces flipped
+  at random: 1,353 islands, seam 81, utilisation 0.21, as xatlas gives too);
+- non-manifold edges (used by more than two faces) and edges whose two faces still disagree
+  on orientation (a non-orientable surface: a Mobius strip) are *cut* (their faces are not
+  connected across them), and
   non-manifold vertices (several fans meeting at one point) are split into one working
   vertex per fan: a working vertex is a group of face corners on one welded point that
   are connected through the remaining (manifold, consistently oriented) edges;
@@ -45,12 +51,14 @@ class PreparedMesh:
         vertices: (V, 3) input positions (as given).
         faces: (F, 3) input faces (as given).
         work_vertices: (W, 3) positions of the working vertices.
-        work_faces: (Fw, 3) working faces: manifold, consistently oriented.
+        work_faces: (Fw, 3) working faces: manifold, consistently oriented (a turned face,
+            ``turned``, has its input face's corners 1 and 2 swapped).
         work_face: (F,) working face of each input face, -1 for a degenerate face.
         input_face: (Fw,) input face of each working face.
         corner_vertex: (F, 3) working vertex of each input face corner (-1 on degenerate faces).
         component: (Fw,) connected component of each working face (ids 0..C-1).
-        stats: counts of what was welded, cut and split.
+        turned: (Fw,) bool, working faces wound against their input face.
+        stats: counts of what was welded, turned, cut and split.
     """
 
     vertices: np.ndarray
@@ -61,6 +69,7 @@ class PreparedMesh:
     input_face: np.ndarray
     corner_vertex: np.ndarray
     component: np.ndarray
+    turned: np.ndarray
     stats: dict
 
     @property
@@ -75,6 +84,23 @@ def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) 
     used = vertices[np.unique(faces)]
     diag = float(np.linalg.norm(used.max(0) - used.min(0))) or 1.0
     return repeated | (triangle_areas(vertices, faces) <= DEGENERATE_AREA * diag * diag)
+
+
+def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """(F,) bool: the faces to turn (swap corners 1 and 2) so that each orientable patch
+    (faces joined through edges of two faces: libigl's ``bfs_orient``) is wound one way,
+    the way of most of its ``area``. A consistently wound mesh turns no face."""
+    import igl
+
+    faces = np.ascontiguousarray(faces, np.int64)
+    oriented, patch = igl.bfs_orient(faces)
+    # bfs_orient reverses a face it turns: a face kept is a rotation of the input
+    kept = np.zeros(len(faces), bool)
+    for k in range(3):
+        kept |= (oriented == np.roll(faces, k, axis=1)).all(1)
+    against = np.bincount(patch, weights=np.where(kept, 0.0, area), minlength=int(patch.max()) + 1)
+    total = np.bincount(patch, weights=area, minlength=int(patch.max()) + 1)
+    return ~kept ^ (against > 0.5 * total)[patch]
 
 
 def corner_groups(wf: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -126,7 +152,8 @@ def face_components(faces: np.ndarray) -> np.ndarray:
 
 
 def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
-    """Weld, cut non-manifold and inconsistently oriented edges, split non-manifold vertices,
+    """Weld, turn faces wound against their patch, cut non-manifold and inconsistently oriented
+    edges, split non-manifold vertices,
     set degenerate faces aside; see the module docstring. Raises ``InputError`` on bad input
     (no faces, NaN, out-of-range indices, only degenerate faces)."""
     vertices, faces = validate_mesh(vertices, faces, name)
@@ -135,19 +162,25 @@ def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
     keep = np.flatnonzero(~degenerate)
     if len(keep) == 0:
         raise InputError(f"{name}: every face is degenerate (zero area or a repeated vertex)")
-    corner_vertex_w, stats = corner_groups(weld[faces[keep]])
+    wf = weld[faces[keep]]
+    turned = consistent_winding(wf, triangle_areas(vertices, faces[keep]))
+    wf[turned] = wf[turned][:, [0, 2, 1]]
+    corner_vertex_w, stats = corner_groups(wf)
     # position of a working vertex: the input position of (any) one of its corners
     pos = np.zeros((int(corner_vertex_w.max()) + 1, 3))
-    pos[corner_vertex_w.ravel()] = vertices[faces[keep].ravel()]
+    fk = faces[keep]
+    fk[turned] = fk[turned][:, [0, 2, 1]]  # the corners in the working faces' order
+    pos[corner_vertex_w.ravel()] = vertices[fk.ravel()]
     corner_vertex = np.full(faces.shape, -1, np.int64)
     corner_vertex[keep] = corner_vertex_w
+    corner_vertex[keep[turned]] = corner_vertex_w[turned][:, [0, 2, 1]]  # back to the input's corners
     work_face = np.full(len(faces), -1, np.int64)
     work_face[keep] = np.arange(len(keep))
     n_points = len(np.unique(weld[faces[keep]]))
     stats.update({"input_vertices": int(len(vertices)), "input_faces": int(len(faces)),
                   "welded_vertices": int(len(np.unique(faces)) - len(np.unique(weld[faces]))),
                   "degenerate_faces": int(degenerate.sum()),
-                  "split_vertices": int(len(pos) - n_points)})
+                  "split_vertices": int(len(pos) - n_points), "turned_faces": int(turned.sum())})
     comp = face_components(corner_vertex_w)
     stats["components"] = int(comp.max()) + 1
-    return PreparedMesh(vertices, faces, pos, corner_vertex_w, work_face, keep, corner_vertex, comp, stats)
+    return PreparedMesh(vertices, faces, pos, corner_vertex_w, work_face, keep, corner_vertex, comp, turned, stats)

@@ -4,8 +4,9 @@ The fitted charts supply the *segmentation*; classical geometry processing suppl
 flattening (the charts' own UVs are not a usable start: input vertices off a chart's
 domain project onto its border and fold). Stages (timed in ``stats["timings"]``):
 
-1. ``prepare``: weld, cut non-manifold edges, split non-manifold vertices, set degenerate
-   faces aside (:mod:`texture.meshprep`); the input's faces and their order are kept.
+1. ``prepare``: weld, turn faces wound against their neighbours, cut non-manifold edges,
+   split non-manifold vertices, set degenerate faces aside (:mod:`texture.meshprep`); the
+   input's faces and their order are kept.
 2. ``assign``: chart per face by depth-preferring nearest-chart votes (:mod:`texture.assign`).
    A connected component none of whose faces comes within ``FAR_TOL`` of a chart is a
    *fallback* component: it becomes its own region, flattened the same classical way
@@ -31,7 +32,9 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
    ``resolution`` and ``padding`` (the search compares real packings).
 
 Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
-the same corner order, in the input frame; output vertex = one per distinct (input
+the same corner order, in the input frame (except a face wound against its neighbours,
+``prepare``'s ``turned_faces``: it is written wound like them, corners 2 and 3 swapped, so
+that its texture does not read mirrored where its neighbours' reads right); output vertex = one per distinct (input
 vertex, island vertex) pair, so input vertices are duplicated only along seams (and where
 the input was non-manifold). A degenerate face (zero area or a repeated index) gets three
 vertices of its own (its corners' 3D positions) on one UV point of a neighbouring island:
@@ -199,9 +202,13 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
         corner_node[f] = first
         face_island[f] = int(node_island[first])
     # output vertex per (input vertex, node); a face repeating a vertex gets distinct copies
-    corner_key = np.stack([prep.faces.ravel(), corner_node.ravel()], 1)
+    # a face wound against its neighbours is written wound like them (the working face's
+    # corner order: corners 1 and 2 swapped), so no island holds both windings
+    fr = prep.faces.copy()
+    turned = prep.input_face[prep.turned]
+    fr[turned] = fr[turned][:, [0, 2, 1]]
+    corner_key = np.stack([fr.ravel(), corner_node.ravel()], 1)
     rep = np.zeros((F, 3), np.int64)
-    fr = prep.faces
     rep[:, 1] = fr[:, 1] == fr[:, 0]
     rep[:, 2] = (fr[:, 2] == fr[:, 0]) | (fr[:, 2] == fr[:, 1])
     rep[:, 2] += (fr[:, 2] == fr[:, 0]) & (fr[:, 2] == fr[:, 1])

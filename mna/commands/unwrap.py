@@ -115,6 +115,10 @@ def run_unwrap(args: argparse.Namespace) -> int:
     if inp.had_uv:
         print(f"the texture coordinates {Path(args.mesh).name} carried were replaced (mesh.obj and mesh.glb hold the new "
               "ones; the input file is unchanged)")
+    turned = doc["prepare"].get("turned_faces", 0)
+    if turned:
+        print(f"{turned} of {Path(args.mesh).name}'s faces were wound against their neighbours: mesh.obj and mesh.glb "
+              "hold them wound like their neighbours (the same triangles, corners 2 and 3 swapped)")
     fallback = doc["assignment"]["fallback_area_fraction"]
     if fit_info["fit"] == "reused" and fallback > REUSED_FALLBACK_WARNING:
         # a fit of this mesh reaches every part it sampled: most of the area out of reach means

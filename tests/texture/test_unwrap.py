@@ -692,3 +692,57 @@ def test_a_slit_heads_for_degenerate_faces():
     # the same patch at finite energy, lower than the near-border peak: the path goes there
     energy[middle] = 0.06
     assert np.linalg.norm(xyz[slit_path(xyz, faces, energy)[-1], :2] - [0.35, 0.0]) < 0.1
+
+
+def test_faces_wound_against_their_neighbours_unwrap_as_the_surface():
+    """A sphere with 30 % of its faces' winding reversed (an STL or CAD export, a merge of
+    flipped pieces) is the same surface: prepared, it is one consistently wound component
+    with exactly those faces turned, and it unwraps to the islands, seams and distortion of
+    the sphere as wound, each turned face written wound like its neighbours (no flipped or
+    mirrored face). Cut at every edge where the winding disagreed, it fell apart into
+    hundreds of islands."""
+    uv, xyz, occ = sphere_charts(48)
+    charts = ChartGrids(uv, xyz, occ, 0.5, Normalization(CENTER, SCALE))
+    mesh = shapes.sphere(radius=1.0, subdivisions=3)
+    mesh.apply_scale(SCALE)
+    mesh.apply_translation(CENTER)
+    flip = np.random.default_rng(0).random(len(mesh.faces)) < 0.3
+    faces = np.asarray(mesh.faces).copy()
+    faces[flip] = faces[flip][:, ::-1]
+    prep = prepare_mesh(mesh.vertices, faces)
+    assert prep.stats["turned_faces"] == flip.sum() > 100
+    np.testing.assert_array_equal(prep.turned, flip)
+    assert prep.stats["inconsistent_edges"] == 0 and prep.stats["components"] == 1
+    want = unwrap_mesh(mesh.vertices, mesh.faces, charts, FAST)
+    got = unwrap_mesh(mesh.vertices, faces, charts, FAST)
+    np.testing.assert_array_equal(got.island, want.island)
+    # every face is the input's triangle; a turned face has corners 2 and 3 swapped
+    corners = np.asarray(mesh.vertices)[faces]
+    corners[flip] = corners[flip][:, [0, 2, 1]]
+    np.testing.assert_array_equal(got.mesh.vertices[got.mesh.faces], corners)
+    mg, mw = measure(got.mesh).summary, measure(want.mesh).summary
+    for k in ("charts", "seam_length", "distortion_metric", "utilization"):
+        assert mg[k] == pytest.approx(mw[k], rel=1e-9), k
+    assert mg["flipped_faces"] == 0 and mg["mirrored_area_percent"] == 0.0
+
+
+def test_a_moebius_strip_is_cut_where_its_winding_cannot_agree():
+    """A non-orientable surface has no consistent winding: the edges where the turned faces
+    still disagree (a cut across the strip) are cut, and the rest unwraps as one strip."""
+    nu, nv = 90, 7
+    u, w = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False), np.linspace(-0.3, 0.3, nv), indexing="ij")
+    v = np.stack([(1 + w * np.cos(u / 2)) * np.cos(u), (1 + w * np.cos(u / 2)) * np.sin(u), w * np.sin(u / 2)],
+                 -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv - 1), indexing="ij")
+    a = (i * nv + j).ravel()
+    nxt = np.where(i == nu - 1, nv - 1 - j, (i + 1) * nv + j).ravel()  # the last column glued back upside down
+    nxt1 = np.where(i == nu - 1, nv - 2 - j, (i + 1) * nv + j + 1).ravel()
+    f = np.concatenate([np.stack([a, nxt, a + 1], 1), np.stack([a + 1, nxt, nxt1], 1)])
+    prep = prepare_mesh(v, f)
+    assert prep.stats["components"] == 1 and prep.stats["nonmanifold_edges"] == 0
+    assert prep.stats["inconsistent_edges"] >= nv - 1  # a cut from border to border
+    mesh = trimesh.Trimesh(v, f, process=False)
+    res = unwrap_mesh(v, f, far_chart(mesh), FAST)
+    m = measure(res.mesh).summary
+    assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
+    assert all(t == (1, 1) for t in island_topology(res))  # disks

@@ -258,3 +258,26 @@ def test_texture_coordinates_the_input_carried_are_replaced_and_said_so(tmp_path
     back = read_back(tmp_path / "out" / "mesh.glb")
     assert len(back.faces) == len(sphere.faces)
 
+
+
+def test_faces_wound_against_their_neighbours_are_written_wound_like_them_and_said_so(tmp_path, capsys):
+    """The sphere with a fifth of its faces' winding reversed: the summary says how many, and
+    mesh.obj and mesh.glb read back with every face wound like its neighbours (the GLB passes
+    the validator), no face flipped or mirrored; an input wound consistently says nothing."""
+    run = write_sphere_run(tmp_path / "run", G=32)
+    sphere = trimesh.load(run / "input.ply", process=False)
+    faces = np.asarray(sphere.faces).copy()
+    flip = np.random.default_rng(1).random(len(faces)) < 0.2
+    faces[flip] = faces[flip][:, ::-1]
+    trimesh.Trimesh(sphere.vertices, faces, process=False).export(tmp_path / "scrambled.ply")
+    args = ["--run", str(run), "--no-progress", *SMALL]
+    assert main(["unwrap", str(tmp_path / "scrambled.ply"), "-o", str(tmp_path / "out"), *args]) == 0
+    assert f"{flip.sum()} of scrambled.ply's faces were wound against their neighbours" in capsys.readouterr().out
+    for name in ("mesh.obj", "mesh.glb"):
+        back = read_back(tmp_path / "out" / name)
+        assert trimesh.Trimesh(back.vertices, back.faces).is_winding_consistent
+        m = measure(back).summary
+        assert m["flipped_faces"] == 0 and m["mirrored_area_percent"] == 0.0
+    assert_glb_validates(tmp_path / "out" / "mesh.glb")
+    assert main(["unwrap", str(run / "input.ply"), "-o", str(tmp_path / "own"), *args]) == 0
+    assert "wound against" not in capsys.readouterr().out
