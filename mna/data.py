@@ -15,6 +15,8 @@ import trimesh
 
 from mnacore.errors import InputError
 from mnacore.frame import Normalization, check_file_format, read_failure
+from mnacore.triangles import consistent_winding, triangle_areas
+from mnacore.uvmesh import weld_ids
 
 MESH_EXTS = {".obj", ".ply", ".off", ".stl", ".glb", ".gltf"}
 POINT_EXTS = {".xyz", ".npy", ".npz", ".txt"}
@@ -37,8 +39,20 @@ class Surface:
     @functools.cached_property
     def face_normals(self) -> np.ndarray | None:
         """(F, 3) unit face normals of the mesh, computed once (trimesh re-hashes the mesh on
-        every access to its cache, which costs a fifth of a 1-chart step)."""
-        return None if self.mesh is None else np.array(self.mesh.face_normals, dtype=np.float64)
+        every access to its cache, which costs a fifth of a 1-chart step), each turned like
+        its neighbours' where its face is wound against them (:func:`consistent_winding`):
+        L_orient asks each chart to face one way, which scrambled normals cannot tell."""
+        if self.mesh is None:
+            return None
+        faces = np.asarray(self.mesh.faces, np.int64)
+        normals = np.array(self.mesh.face_normals, dtype=np.float64)
+        welded = weld_ids(self.mesh.vertices)[faces]
+        ok = np.flatnonzero((welded[:, 0] != welded[:, 1]) & (welded[:, 1] != welded[:, 2])
+                            & (welded[:, 0] != welded[:, 2]))
+        if len(ok):
+            turned = ok[consistent_winding(welded[ok], triangle_areas(self.mesh.vertices, faces[ok]))]
+            normals[turned] *= -1.0
+        return normals
 
     def sample(self, count: int, rng: np.random.Generator) -> np.ndarray:
         """``count`` points on the surface: area-uniform on a mesh, a random subset of a cloud."""

@@ -49,3 +49,21 @@ def isometric_triangle(p: np.ndarray) -> np.ndarray:
     x = float(e1 @ e2) / max(length, 1e-300)
     y = float(np.sqrt(max(float(e2 @ e2) - x * x, 0.0)))
     return np.array([[0.0, 0.0], [length, 0.0], [x, y]])
+
+
+def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """(F,) bool: the faces to turn (swap corners 1 and 2) so that each orientable patch
+    (faces joined through edges of two faces: libigl's ``bfs_orient``) is wound one way,
+    the way of most of its ``area``. A consistently wound mesh turns no face. ``faces``
+    index welded vertices (a face with a repeated index is degenerate: leave it out)."""
+    import igl
+
+    faces = np.ascontiguousarray(faces, np.int64)
+    oriented, patch = igl.bfs_orient(faces)
+    # bfs_orient reverses a face it turns: a face kept is a rotation of the input
+    kept = np.zeros(len(faces), bool)
+    for k in range(3):
+        kept |= (oriented == np.roll(faces, k, axis=1)).all(1)
+    against = np.bincount(patch, weights=np.where(kept, 0.0, area), minlength=int(patch.max()) + 1)
+    total = np.bincount(patch, weights=area, minlength=int(patch.max()) + 1)
+    return ~kept ^ (against > 0.5 * total)[patch]

@@ -7,7 +7,7 @@ oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered
 - duplicated vertices (same position within ``WELD_TOL`` of the bounding-box diagonal)
   are welded, so a mesh saved with split vertices unwraps as one surface;
 - faces wound against their neighbours are turned, in the working mesh only, to the
-  winding of most of their patch's area (:func:`consistent_winding`): a surface whose
+  winding of most of their patch's area (:func:`mnacore.triangles.consistent_winding`): a surface whose
   winding was scrambled (an STL or CAD export, a merge of flipped pieces) unwraps as the
   surface it is, not as the pieces its flips leave (a sphere with half its faces flipped
   at random: 1,353 islands, seam 81, utilisation 0.21, as xatlas gives too);
@@ -34,7 +34,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from mnacore.errors import InputError
-from mnacore.triangles import triangle_areas
+from mnacore.triangles import consistent_winding, triangle_areas
 from mnacore.uvmesh import validate_mesh, weld_ids
 
 #: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
@@ -84,23 +84,6 @@ def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) 
     used = vertices[np.unique(faces)]
     diag = float(np.linalg.norm(used.max(0) - used.min(0))) or 1.0
     return repeated | (triangle_areas(vertices, faces) <= DEGENERATE_AREA * diag * diag)
-
-
-def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
-    """(F,) bool: the faces to turn (swap corners 1 and 2) so that each orientable patch
-    (faces joined through edges of two faces: libigl's ``bfs_orient``) is wound one way,
-    the way of most of its ``area``. A consistently wound mesh turns no face."""
-    import igl
-
-    faces = np.ascontiguousarray(faces, np.int64)
-    oriented, patch = igl.bfs_orient(faces)
-    # bfs_orient reverses a face it turns: a face kept is a rotation of the input
-    kept = np.zeros(len(faces), bool)
-    for k in range(3):
-        kept |= (oriented == np.roll(faces, k, axis=1)).all(1)
-    against = np.bincount(patch, weights=np.where(kept, 0.0, area), minlength=int(patch.max()) + 1)
-    total = np.bincount(patch, weights=area, minlength=int(patch.max()) + 1)
-    return ~kept ^ (against > 0.5 * total)[patch]
 
 
 def corner_groups(wf: np.ndarray) -> tuple[np.ndarray, dict]:

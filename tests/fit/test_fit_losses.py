@@ -196,3 +196,22 @@ def test_objective_orientation_term():
     # reversing every normal keeps every chart consistent with itself: same loss
     assert _f(atlas_losses(model, uv, targets, cfg, z, -normals).orient) == pytest.approx(_f(t.orient), rel=1e-10)
     assert _f(atlas_losses(model, uv, targets, cfg, z).orient) == 0.0
+
+
+def test_face_normals_of_a_scrambled_winding_face_the_way_of_their_neighbours():
+    """L_orient asks each chart to face one way: the targets' normals must. A sphere with 30 %
+    of its faces' winding reversed gives the normals of the sphere as wound (outward), face
+    by face; a consistently wound mesh keeps trimesh's own normals."""
+    from mna import shapes
+    from mna.data import make_surface
+
+    sphere = shapes.sphere(radius=1.0, subdivisions=3)
+    faces = np.asarray(sphere.faces).copy()
+    flip = np.random.default_rng(0).random(len(faces)) < 0.3
+    faces[flip] = faces[flip][:, ::-1]
+    want = make_surface(sphere.vertices, sphere.faces).face_normals
+    got = make_surface(sphere.vertices, faces).face_normals
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    centre = np.asarray(sphere.vertices)[sphere.faces].mean(1)
+    assert ((want * centre).sum(1) > 0).all()  # outward, as the sphere is wound
+    assert flip.sum() > 100
