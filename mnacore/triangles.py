@@ -54,8 +54,10 @@ def isometric_triangle(p: np.ndarray) -> np.ndarray:
 def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
     """(F,) bool: the faces to turn (swap corners 1 and 2) so that each orientable patch
     (faces joined through edges of two faces: libigl's ``bfs_orient``) is wound one way,
-    the way of most of its ``area``. A consistently wound mesh turns no face. ``faces``
-    index welded vertices (a face with a repeated index is degenerate: leave it out)."""
+    the way of most of its ``area``. A consistently wound mesh turns no face, and neither
+    does a patch no winding makes consistent (a Mobius strip: turning faces would only move
+    the edges where it disagrees). ``faces`` index welded vertices (a face with a repeated
+    index is degenerate: leave it out)."""
     import igl
 
     faces = np.ascontiguousarray(faces, np.int64)
@@ -66,4 +68,21 @@ def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
         kept |= (oriented == np.roll(faces, k, axis=1)).all(1)
     against = np.bincount(patch, weights=np.where(kept, 0.0, area), minlength=int(patch.max()) + 1)
     total = np.bincount(patch, weights=area, minlength=int(patch.max()) + 1)
-    return ~kept ^ (against > 0.5 * total)[patch]
+    turned = ~kept ^ (against > 0.5 * total)[patch]
+    wound = faces.copy()
+    wound[turned] = wound[turned][:, [0, 2, 1]]
+    return turned & ~np.isin(patch, patch[_disagreeing_faces(wound)])
+
+
+def _disagreeing_faces(faces: np.ndarray) -> np.ndarray:
+    """Faces on an edge that two faces run in the same direction (used by exactly two faces)."""
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+    n = int(faces.max()) + 1
+    key = he.min(1) * n + he.max(1)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
+    counts = np.diff(np.r_[starts, len(ks)])
+    a, b = order[starts[counts == 2]], order[starts[counts == 2] + 1]
+    same = he[a, 0] == he[b, 0]
+    return np.unique(np.r_[a[same], b[same]] // 3)

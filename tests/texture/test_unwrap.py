@@ -727,8 +727,9 @@ def test_faces_wound_against_their_neighbours_unwrap_as_the_surface():
 
 
 def test_a_moebius_strip_is_cut_where_its_winding_cannot_agree():
-    """A non-orientable surface has no consistent winding: the edges where the turned faces
-    still disagree (a cut across the strip) are cut, and the rest unwraps as one strip."""
+    """A non-orientable surface has no consistent winding: no face is turned (that would only
+    move the edges where it disagrees), those edges (a cut across the strip, where it was
+    glued back upside down) are cut, and the rest unwraps into disks."""
     nu, nv = 90, 7
     u, w = np.meshgrid(np.linspace(0, 2 * np.pi, nu, endpoint=False), np.linspace(-0.3, 0.3, nv), indexing="ij")
     v = np.stack([(1 + w * np.cos(u / 2)) * np.cos(u), (1 + w * np.cos(u / 2)) * np.sin(u), w * np.sin(u / 2)],
@@ -740,7 +741,7 @@ def test_a_moebius_strip_is_cut_where_its_winding_cannot_agree():
     f = np.concatenate([np.stack([a, nxt, a + 1], 1), np.stack([a + 1, nxt, nxt1], 1)])
     prep = prepare_mesh(v, f)
     assert prep.stats["components"] == 1 and prep.stats["nonmanifold_edges"] == 0
-    assert prep.stats["inconsistent_edges"] >= nv - 1  # a cut from border to border
+    assert prep.stats["turned_faces"] == 0 and prep.stats["inconsistent_edges"] == nv - 1  # the glued edges
     mesh = trimesh.Trimesh(v, f, process=False)
     res = unwrap_mesh(v, f, far_chart(mesh), FAST)
     m = measure(res.mesh).summary
