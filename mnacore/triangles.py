@@ -61,6 +61,8 @@ def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
     import igl
 
     faces = np.ascontiguousarray(faces, np.int64)
+    if len(faces) == 0 or len(_disagreeing_faces(faces)) == 0:  # wound consistently already (the usual case)
+        return np.zeros(len(faces), bool)
     oriented, patch = igl.bfs_orient(faces)
     # bfs_orient reverses a face it turns: a face kept is a rotation of the input
     kept = np.zeros(len(faces), bool)
