@@ -6,9 +6,10 @@ parametrised over [-1,1]^2) are never merged. xatlas does not promise to keep an
 shape: it rotates islands by any angle (``rotate_charts_to_axis``), stretches them by up to
 a texel to align their extents to whole texels, and silently *shrinks* an island that is
 larger than the atlas. So we never use xatlas's UVs directly: per island we fit the
-similarity ``x -> s R x + t`` (weighted Procrustes, :func:`similarity_fit`) from its input
-UVs to xatlas's, keep only the rotation ``R``, and re-place the island at the one shared
-scale ``tpu`` (texels per unit) around xatlas's centroid.
+similarity ``x -> s R x + t`` (weighted Procrustes, :func:`texture.similarity.similarity_fit`;
+all islands at once, :func:`texture.similarity.similarity_rotations`) from its input UVs to
+xatlas's, keep only the rotation ``R``, and re-place the island at the one shared scale
+``tpu`` (texels per unit) around xatlas's centroid.
 
 A placement is accepted only when it is *valid*: every island lies within
 ``MAX_FIT_RESIDUAL`` texels of where xatlas put it (so xatlas's gutters still hold), all
@@ -26,7 +27,7 @@ from mnacore.triangles import triangle_areas
 
 from .islandset import IslandSet
 from .mirrors import turn_back
-from .similarity import similarity_fit
+from .similarity import similarity_rotations
 
 #: largest allowed distance (texels) between xatlas's placement and the re-placed island.
 MAX_FIT_RESIDUAL = 2.0
@@ -95,20 +96,19 @@ def place(isl: IslandSet, atlas, tpu: float) -> Placed:
     # xatlas normalises by w, h; its vertices are the outlines' (src -> ours)
     dst[src[vmap]] = out_uv.astype(np.float64) * np.array([atlas.width, atlas.height])
     seen[src[vmap]] = True
+    vi = isl.vert_island
+    used = vi >= 0
+    w = np.where(used, isl.outline.weight * seen, 0.0)
+    rot = similarity_rotations(isl.uv, dst, w, np.where(used, vi, 0), isl.n)  # every island at once
     placed = np.zeros_like(isl.uv)
-    worst, turned = 0.0, []
-    for k, verts in enumerate(isl.verts):
-        w = isl.outline.weight[verts] * seen[verts]
-        if w.sum() <= 0:  # zero UV area: covers no texel, xatlas ignores it; keep it inside the square
-            placed[verts] = _inside_square(isl.uv[verts] * tpu, dst[verts][seen[verts]], atlas)
-            continue
-        fit = similarity_fit(isl.uv[verts], dst[verts], w)
-        mu_s, mu_d = _wmean(isl.uv[verts], w), _wmean(dst[verts], w)
-        placed[verts] = tpu * (isl.uv[verts] - mu_s) @ fit.rotation.T + mu_d
-        on = w > 0
-        worst = max(worst, float(np.abs(placed[verts][on] - dst[verts][on]).max()))
-        if np.linalg.det(fit.rotation) < 0:
-            turned.append(k)
+    k = vi[used]
+    placed[used] = tpu * np.einsum("pij,pj->pi", rot.rotation[k], isl.uv[used] - rot.mean_src[k]) + rot.mean_dst[k]
+    on = w > 0
+    worst = float(np.abs(placed[on] - dst[on]).max()) if on.any() else 0.0
+    for k in np.flatnonzero(rot.weight <= 0):  # zero UV area: covers no texel, xatlas ignores it; keep it inside the square
+        verts = isl.verts[k]
+        placed[verts] = _inside_square(isl.uv[verts] * tpu, dst[verts][seen[verts]], atlas)
+    turned = np.flatnonzero((np.linalg.det(rot.rotation) < 0) & (rot.weight > 0)).tolist()
     return Placed(placed, worst, turned)
 
 
@@ -119,10 +119,6 @@ def _inside_square(px: np.ndarray, near: np.ndarray, atlas) -> np.ndarray:
     px = px - 0.5 * (px.min(0) + px.max(0)) + centre
     px -= np.minimum(px.min(0), 0)
     return px - np.maximum(px.max(0) - size, 0)
-
-
-def _wmean(p, w):
-    return (w @ p) / w.sum() if w.sum() > 0 else p.mean(0)
 
 
 def attempt(isl: IslandSet, resolution, padding, tpu, options, mirror_tries: int = 0) -> np.ndarray | None:

@@ -53,3 +53,58 @@ def similarity_fit(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None 
         if not err < REFLECTION_GAIN * err_rot:
             s, R = s_rot, R_rot
     return Similarity(s, R, mu_d - s * mu_s @ R.T)
+
+
+@dataclass
+class Rotations:
+    """:func:`similarity_fit`'s rotation of many point sets at once, with the weighted means
+    it fits about: ``dst ~ s (src - mean_src) @ rotation[k].T + mean_dst`` for set ``k``."""
+
+    rotation: np.ndarray
+    """(K, 2, 2), the identity for a set of zero total weight or zero spread"""
+    mean_src: np.ndarray
+    """(K, 2)"""
+    mean_dst: np.ndarray
+    """(K, 2)"""
+    weight: np.ndarray
+    """(K,) total weight of each set"""
+
+
+def similarity_rotations(src: np.ndarray, dst: np.ndarray, weights: np.ndarray, group: np.ndarray,
+                         n: int) -> Rotations:
+    """The rotation (or reflection) :func:`similarity_fit` gives each of ``n`` point sets, the
+    points ``src, dst (P, 2)`` with ``weights (P,)`` of set ``group (P,)`` (ids ``0..n-1``),
+    all at once: the same sums and 2x2 SVDs, batched (a placement of 1,500 islands fitted them
+    one by one in 0.3 s, a quarter of the packing's time)."""
+    src, dst = np.asarray(src, np.float64), np.asarray(dst, np.float64)
+    w, group = np.asarray(weights, np.float64), np.asarray(group, np.int64)
+
+    def sums(values: np.ndarray) -> np.ndarray:
+        return np.bincount(group, weights=values, minlength=n)
+
+    total = sums(w)
+    safe = np.where(total > 0, total, 1.0)
+    wn = w / safe[group]
+    mu_s = np.stack([sums(wn * src[:, 0]), sums(wn * src[:, 1])], 1)
+    mu_d = np.stack([sums(wn * dst[:, 0]), sums(wn * dst[:, 1])], 1)
+    x, y = src - mu_s[group], dst - mu_d[group]
+    var = sums(wn * (x * x).sum(1))
+    H = np.stack([np.stack([sums(wn * x[:, i] * y[:, j]) for j in range(2)], 1) for i in range(2)], 1)
+    U, S, Vt = np.linalg.svd(H)
+    V, Ut = np.swapaxes(Vt, 1, 2), np.swapaxes(U, 1, 2)
+    safe_var = np.where(var > 1e-30, var, 1.0)
+
+    def fit(d: float) -> tuple[np.ndarray, np.ndarray]:
+        R = V @ (np.array([1.0, d])[:, None] * Ut)
+        s = (S[:, 0] + d * S[:, 1]) / safe_var
+        r = s[group, None] * np.einsum("pij,pj->pi", R[group], x) - y
+        return sums(wn * (r * r).sum(1)), R
+
+    err, R = fit(1.0)
+    reflected = np.linalg.det(R) < 0
+    if reflected.any():  # a reflection is kept only where it clearly beats the best rotation
+        err_rot, R_rot = fit(-1.0)
+        back = reflected & ~(err < REFLECTION_GAIN * err_rot)
+        R[back] = R_rot[back]
+    R[(total <= 0) | (var <= 1e-30)] = np.eye(2)
+    return Rotations(R, mu_s, mu_d, total)

@@ -464,3 +464,36 @@ def test_exhaustive_placement_runs_at_the_coarse_resolution_only(monkeypatch):
     full = [b for pad, b in calls if pad != 1]
     assert full and not any(full)
     assert pack.full_options(brute) == {} and pack.full_options({**brute, "rotate_charts": False}) == {"rotate_charts": False}
+
+
+def test_rotations_of_many_sets_at_once_equal_one_fit_each():
+    """similarity_rotations is similarity_fit batched: on 60 point sets (rotated or mirrored,
+    scaled by 1.7, some noisy, some of zero total weight or zero spread) it gives each set's
+    rotation, weighted means and total weight, and mirrored sets come back mirrored."""
+    from texture.similarity import similarity_rotations
+
+    rng = np.random.default_rng(0)
+    src, dst, w, g, mirrored = [], [], [], [], []
+    for k in range(60):
+        m = int(rng.integers(3, 12))
+        s = rng.normal(size=(m, 2)) * rng.uniform(0.1, 5)
+        R = _rot(rng.uniform(0, 2 * np.pi)) @ (np.diag([1.0, -1.0]) if k % 3 == 0 else np.eye(2))
+        d = 1.7 * s @ R.T + rng.normal(size=2) + rng.normal(size=(m, 2)) * (0.3 if k % 5 == 0 else 0.0)
+        ww = rng.random(m) * (k % 7 != 0)
+        if k % 11 == 0:
+            s[:] = s[0]
+        src.append(s), dst.append(d), w.append(ww), g.append(np.full(m, k))
+        mirrored.append(k % 3 == 0 and k % 7 != 0 and k % 11 != 0 and k % 5 != 0)
+    src, dst, w, g = map(np.concatenate, (src, dst, w, g))
+    got = similarity_rotations(src, dst, w, g, 60)
+    for k in range(60):
+        sel = g == k
+        fit = similarity_fit(src[sel], dst[sel], w[sel])
+        np.testing.assert_allclose(got.rotation[k], fit.rotation, atol=1e-9)
+        assert got.weight[k] == pytest.approx(w[sel].sum())
+        if w[sel].sum() > 0:
+            np.testing.assert_allclose(got.mean_src[k], w[sel] @ src[sel] / w[sel].sum())
+            np.testing.assert_allclose(got.mean_dst[k], w[sel] @ dst[sel] / w[sel].sum())
+        if mirrored[k]:
+            assert np.linalg.det(got.rotation[k]) < 0
+    assert sum(mirrored) >= 5
