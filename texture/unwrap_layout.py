@@ -159,7 +159,7 @@ def _mode_guesses(layouts: list[list[Island]], tol: float, cfg, cache: dict) -> 
     out = []
     for m in HALVING_MODES:
         mode = PACK_MODES[m]
-        arrays = [outline_arrays(turned(c, mode), cache, tolerance=tol) for c in layouts]
+        arrays = [outline_arrays(turned(c, mode, cache), cache, tolerance=tol) for c in layouts]
         est = estimate_layouts(arrays, resolution=cfg.resolution, padding=cfg.padding, options=mode[1])
         out += [(e.utilization, i, m) for i, e in enumerate(est) if e is not None]
     return out

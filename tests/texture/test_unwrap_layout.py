@@ -380,3 +380,29 @@ def test_a_layout_whose_plan_clears_the_floor_but_whose_packing_does_not_is_refu
     assert best_packed([islands], [mode], cfg, {}, between) is None
     again = best_packed([islands], [mode], cfg, {}, packed.utilization - 0.01)
     assert again.utilization == pytest.approx(packed.utilization)
+
+
+def test_turned_islands_reuse_each_islands_rectangle_and_nothing_else(monkeypatch):
+    """``turned`` with a cache finds each island's minimum-area rectangle once (the packing
+    search turns the same islands in every layout), gives the same UVs as without it, and
+    does not take a rectangle over to a new island whose UVs array reuses a freed one's id."""
+    import texture.layout_packing as LP
+
+    calls = []
+    real = LP.min_rect_rotation
+    monkeypatch.setattr(LP, "min_rect_rotation", lambda uv: calls.append(1) or real(uv))
+    a, b = _grid_island(6, 2), _grid_island(3, 5)
+    a.uv = a.uv @ np.array([[0.8, -0.6], [0.6, 0.8]]).T  # turned 37 degrees: its rectangle is not the axes
+    mode = (True, {})
+    cache: dict = {}
+    first = LP.turned([a, b], mode, cache)
+    again = LP.turned([b, a], mode, cache)
+    assert len(calls) == 2
+    plain = LP.turned([a, b], mode)
+    for x, y in ((first[0], plain[0]), (first[1], plain[1]), (again[1], plain[0])):
+        np.testing.assert_array_equal(x.uv, y.uv)
+    np.testing.assert_allclose(np.ptp(first[0].uv, 0), [6.0, 2.0], atol=1e-12)
+    c = _grid_island(2, 7)
+    del a, first, again, plain
+    LP.turned([c], mode, cache)  # a new array: its rectangle is found, whatever its id
+    assert len(calls) == 5
