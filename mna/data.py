@@ -46,12 +46,7 @@ class Surface:
             return None
         faces = np.asarray(self.mesh.faces, np.int64)
         normals = np.array(self.mesh.face_normals, dtype=np.float64)
-        welded = weld_ids(self.mesh.vertices)[faces]
-        ok = np.flatnonzero((welded[:, 0] != welded[:, 1]) & (welded[:, 1] != welded[:, 2])
-                            & (welded[:, 0] != welded[:, 2]))
-        if len(ok):
-            turned = ok[consistent_winding(welded[ok], triangle_areas(self.mesh.vertices, faces[ok]))]
-            normals[turned] *= -1.0
+        normals[consistent_winding(weld_ids(self.mesh.vertices)[faces], triangle_areas(self.mesh.vertices, faces))] *= -1.0
         return normals
 
     def sample(self, count: int, rng: np.random.Generator) -> np.ndarray:

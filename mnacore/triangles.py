@@ -5,6 +5,8 @@ Shapes: ``points (V, 2)`` or ``(V, 3)``, ``faces (F, 3)`` int; results per face 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -51,40 +53,71 @@ def isometric_triangle(p: np.ndarray) -> np.ndarray:
     return np.array([[0.0, 0.0], [length, 0.0], [x, y]])
 
 
-def consistent_winding(faces: np.ndarray, area: np.ndarray) -> np.ndarray:
+def half_edges(faces: np.ndarray) -> np.ndarray:
+    """(3F, 2) directed edges ``(f0,f1), (f1,f2), (f2,f0)`` of each face, face-major."""
+    faces = np.asarray(faces, np.int64)
+    return np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class EdgePairs:
+    """How the faces of a mesh meet along their edges (vertex indices, not positions)."""
+
+    half_edges: np.ndarray
+    """(3F, 2) :func:`half_edges`; half-edge ``h`` is corner ``h % 3`` of face ``h // 3``"""
+    a: np.ndarray
+    """(P,) one half-edge of each edge used by exactly two faces"""
+    b: np.ndarray
+    """(P,) the other"""
+    nonmanifold: int
+    """edges used by more than two faces"""
+    boundary: int
+    """edges used by one face"""
+
+    def disagreeing_faces(self) -> np.ndarray:
+        """Faces on an edge of two faces that both run it the same way (wound against each other)."""
+        same = self.half_edges[self.a, 0] == self.half_edges[self.b, 0]
+        return np.unique(np.r_[self.a[same], self.b[same]] // 3)
+
+
+def edge_pairs(faces: np.ndarray) -> EdgePairs:
+    """:class:`EdgePairs` of ``faces`` (one sort of the half-edges by their undirected edge)."""
+    he = half_edges(faces)
+    n = int(he.max()) + 1 if len(he) else 1
+    key = he.min(1) * n + he.max(1)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if len(ks) else np.zeros(0, np.int64)
+    counts = np.diff(np.r_[starts, len(ks)])
+    pair = starts[counts == 2]
+    return EdgePairs(he, order[pair], order[pair + 1], int((counts > 2).sum()), int((counts == 1).sum()))
+
+
+def consistent_winding(faces: np.ndarray, area: np.ndarray, pairs: EdgePairs | None = None) -> np.ndarray:
     """(F,) bool: the faces to turn (swap corners 1 and 2) so that each orientable patch
     (faces joined through edges of two faces: libigl's ``bfs_orient``) is wound one way,
     the way of most of its ``area``. A consistently wound mesh turns no face, and neither
     does a patch no winding makes consistent (a Mobius strip: turning faces would only move
-    the edges where it disagrees). ``faces`` index welded vertices (a face with a repeated
-    index is degenerate: leave it out)."""
+    the edges where it disagrees), nor a face with a repeated index (degenerate). ``faces``
+    index welded vertices; ``pairs``: their :func:`edge_pairs`, where the caller has them."""
     import igl
 
     faces = np.ascontiguousarray(faces, np.int64)
-    if len(faces) == 0 or len(_disagreeing_faces(faces)) == 0:  # wound consistently already (the usual case)
-        return np.zeros(len(faces), bool)
-    oriented, patch = igl.bfs_orient(faces)
+    turned = np.zeros(len(faces), bool)
+    pairs = edge_pairs(faces) if pairs is None else pairs
+    if len(faces) == 0 or len(pairs.disagreeing_faces()) == 0:  # wound consistently already (the usual case)
+        return turned
+    ok = np.flatnonzero((faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2]))
+    f = faces[ok]
+    oriented, patch = igl.bfs_orient(f)
     # bfs_orient reverses a face it turns: a face kept is a rotation of the input
-    kept = np.zeros(len(faces), bool)
+    kept = np.zeros(len(f), bool)
     for k in range(3):
-        kept |= (oriented == np.roll(faces, k, axis=1)).all(1)
-    against = np.bincount(patch, weights=np.where(kept, 0.0, area), minlength=int(patch.max()) + 1)
-    total = np.bincount(patch, weights=area, minlength=int(patch.max()) + 1)
-    turned = ~kept ^ (against > 0.5 * total)[patch]
-    wound = faces.copy()
-    wound[turned] = wound[turned][:, [0, 2, 1]]
-    return turned & ~np.isin(patch, patch[_disagreeing_faces(wound)])
-
-
-def _disagreeing_faces(faces: np.ndarray) -> np.ndarray:
-    """Faces on an edge that two faces run in the same direction (used by exactly two faces)."""
-    he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
-    n = int(faces.max()) + 1
-    key = he.min(1) * n + he.max(1)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    starts = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
-    counts = np.diff(np.r_[starts, len(ks)])
-    a, b = order[starts[counts == 2]], order[starts[counts == 2] + 1]
-    same = he[a, 0] == he[b, 0]
-    return np.unique(np.r_[a[same], b[same]] // 3)
+        kept |= (oriented == np.roll(f, k, axis=1)).all(1)
+    against = np.bincount(patch, weights=np.where(kept, 0.0, area[ok]), minlength=int(patch.max()) + 1)
+    total = np.bincount(patch, weights=area[ok], minlength=int(patch.max()) + 1)
+    turn = ~kept ^ (against > 0.5 * total)[patch]
+    wound = f.copy()
+    wound[turn] = wound[turn][:, [0, 2, 1]]
+    turned[ok] = turn & ~np.isin(patch, patch[edge_pairs(wound).disagreeing_faces()])
+    return turned

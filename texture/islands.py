@@ -11,6 +11,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from mnacore.triangles import half_edges
+
 
 def unique_rows(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(first, ids) of the distinct rows of ``values`` (N, K): the index of each distinct row's
@@ -36,12 +38,6 @@ def unique_rows(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _point_ids(values: np.ndarray) -> np.ndarray:
     """(V,) id per row of ``values``, equal iff the rows are exactly equal."""
     return unique_rows(values)[1]
-
-
-def half_edges(faces: np.ndarray) -> np.ndarray:
-    """(3F, 2) directed edges ``(f0,f1), (f1,f2), (f2,f0)`` of each face, face-major."""
-    faces = np.asarray(faces, np.int64)
-    return np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
 
 
 def vertex_adjacency(faces: np.ndarray, n: int):

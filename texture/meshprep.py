@@ -34,7 +34,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from mnacore.errors import InputError
-from mnacore.triangles import consistent_winding, triangle_areas
+from mnacore.triangles import EdgePairs, consistent_winding, edge_pairs, triangle_areas
 from mnacore.uvmesh import validate_mesh, weld_ids
 
 #: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
@@ -86,28 +86,21 @@ def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) 
     return repeated | (triangle_areas(vertices, faces) <= DEGENERATE_AREA * diag * diag)
 
 
-def corner_groups(wf: np.ndarray) -> tuple[np.ndarray, dict]:
+def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None) -> tuple[np.ndarray, dict]:
     """(Fw, 3) working vertex per corner of faces ``wf`` (welded ids), cutting bad edges.
 
     Corners ``(f, c)`` and ``(g, d)`` on the same welded point are joined when faces
     ``f`` and ``g`` share an edge through that point that is used by exactly these two
-    faces in opposite directions (manifold and consistently oriented).
+    faces in opposite directions (manifold and consistently oriented). ``pairs``:
+    :func:`mnacore.triangles.edge_pairs` of ``wf``, where the caller has them.
     """
     Fw = len(wf)
-    he = np.stack([wf, np.roll(wf, -1, axis=1)], -1).reshape(-1, 2)  # (3Fw, 2): corner c -> c+1
-    lo, hi = he.min(1), he.max(1)
-    n = int(wf.max()) + 1
-    key = lo * n + hi
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    starts = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
-    counts = np.diff(np.r_[starts, len(ks)])
-    pair = starts[counts == 2]
-    a, b = order[pair], order[pair + 1]  # half-edge ids
+    pairs = edge_pairs(wf) if pairs is None else pairs
+    he, a, b = pairs.half_edges, pairs.a, pairs.b  # half-edge ids
     opposite = (he[a, 0] == he[b, 1]) & (he[a, 1] == he[b, 0])
-    stats = {"nonmanifold_edges": int((counts > 2).sum()),
+    stats = {"nonmanifold_edges": pairs.nonmanifold,
              "inconsistent_edges": int((~opposite).sum()),
-             "boundary_edges": int((counts == 1).sum())}
+             "boundary_edges": pairs.boundary}
     a, b = a[opposite], b[opposite]
     # half-edge h = 3 f + c runs corner c -> c+1; its twin runs d+1 -> d: join (f,c)~(g,d+1), (f,c+1)~(g,d)
     fa, ca = np.divmod(a, 3)
@@ -146,9 +139,12 @@ def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
     if len(keep) == 0:
         raise InputError(f"{name}: every face is degenerate (zero area or a repeated vertex)")
     wf = weld[faces[keep]]
-    turned = consistent_winding(wf, triangle_areas(vertices, faces[keep]))
-    wf[turned] = wf[turned][:, [0, 2, 1]]
-    corner_vertex_w, stats = corner_groups(wf)
+    pairs = edge_pairs(wf)
+    turned = consistent_winding(wf, triangle_areas(vertices, faces[keep]), pairs)
+    if turned.any():
+        wf[turned] = wf[turned][:, [0, 2, 1]]
+        pairs = edge_pairs(wf)
+    corner_vertex_w, stats = corner_groups(wf, pairs)
     # position of a working vertex: the input position of (any) one of its corners
     pos = np.zeros((int(corner_vertex_w.max()) + 1, 3))
     fk = faces[keep]
