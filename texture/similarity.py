@@ -28,31 +28,15 @@ def similarity_fit(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None 
     residual is under ``REFLECTION_GAIN`` times that of the best rotation (``d = -1``), i.e.
     only when the target really is mirrored. Zero total weight or zero spread
     (a degenerate island) gives the identity rotation, scale 1, centroid-to-centroid.
+    One point set of :func:`similarity_rotations`.
     """
     src, dst = np.asarray(src, np.float64), np.asarray(dst, np.float64)
     w = np.ones(len(src)) if weights is None else np.asarray(weights, np.float64)
     if len(src) == 0 or w.sum() <= 0:
         return Similarity(1.0, np.eye(2), np.zeros(2) if len(src) == 0 else dst.mean(0) - src.mean(0))
-    w = w / w.sum()
-    mu_s, mu_d = w @ src, w @ dst
-    x, y = src - mu_s, dst - mu_d
-    var = float(w @ (x * x).sum(1))
-    if var <= 1e-30:
-        return Similarity(1.0, np.eye(2), mu_d - mu_s)
-    U, S, Vt = np.linalg.svd((x * w[:, None]).T @ y)
-
-    def fit(d):
-        D = np.diag([1.0, d])
-        R = Vt.T @ D @ U.T
-        s = float(S @ np.diag(D)) / var
-        return float(w @ ((s * x @ R.T - y) ** 2).sum(1)), s, R
-
-    err, s, R = fit(1.0)  # the unconstrained optimum R = V U^T
-    if np.linalg.det(R) < 0:  # it is a reflection: keep it only if it clearly beats the best rotation
-        err_rot, s_rot, R_rot = fit(-1.0)
-        if not err < REFLECTION_GAIN * err_rot:
-            s, R = s_rot, R_rot
-    return Similarity(s, R, mu_d - s * mu_s @ R.T)
+    r = similarity_rotations(src, dst, w, np.zeros(len(src), np.int64), 1)
+    R, scale, mu_s, mu_d = r.rotation[0], float(r.scale[0]), r.mean_src[0], r.mean_dst[0]
+    return Similarity(scale, R, mu_d - scale * mu_s @ R.T)
 
 
 @dataclass
@@ -62,6 +46,8 @@ class Rotations:
 
     rotation: np.ndarray
     """(K, 2, 2), the identity for a set of zero total weight or zero spread"""
+    scale: np.ndarray
+    """(K,), 1 for a set of zero total weight or zero spread"""
     mean_src: np.ndarray
     """(K, 2)"""
     mean_dst: np.ndarray
@@ -72,10 +58,10 @@ class Rotations:
 
 def similarity_rotations(src: np.ndarray, dst: np.ndarray, weights: np.ndarray, group: np.ndarray,
                          n: int) -> Rotations:
-    """The rotation (or reflection) :func:`similarity_fit` gives each of ``n`` point sets, the
-    points ``src, dst (P, 2)`` with ``weights (P,)`` of set ``group (P,)`` (ids ``0..n-1``),
-    all at once: the same sums and 2x2 SVDs, batched (a placement of 1,500 islands fitted them
-    one by one in 0.3 s, a quarter of the packing's time)."""
+    """The rotation (or reflection) and scale of :func:`similarity_fit` for each of ``n`` point
+    sets, the points ``src, dst (P, 2)`` with ``weights (P,)`` of set ``group (P,)`` (ids
+    ``0..n-1``), all at once: the sums and 2x2 SVDs batched (a placement of 1,500 islands
+    fitted them one by one in 0.3 s, a quarter of the packing's time)."""
     src, dst = np.asarray(src, np.float64), np.asarray(dst, np.float64)
     w, group = np.asarray(weights, np.float64), np.asarray(group, np.int64)
 
@@ -94,17 +80,18 @@ def similarity_rotations(src: np.ndarray, dst: np.ndarray, weights: np.ndarray, 
     V, Ut = np.swapaxes(Vt, 1, 2), np.swapaxes(U, 1, 2)
     safe_var = np.where(var > 1e-30, var, 1.0)
 
-    def fit(d: float) -> tuple[np.ndarray, np.ndarray]:
+    def fit(d: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         R = V @ (np.array([1.0, d])[:, None] * Ut)
         s = (S[:, 0] + d * S[:, 1]) / safe_var
         r = s[group, None] * np.einsum("pij,pj->pi", R[group], x) - y
-        return sums(wn * (r * r).sum(1)), R
+        return sums(wn * (r * r).sum(1)), R, s
 
-    err, R = fit(1.0)
+    err, R, s = fit(1.0)
     reflected = np.linalg.det(R) < 0
     if reflected.any():  # a reflection is kept only where it clearly beats the best rotation
-        err_rot, R_rot = fit(-1.0)
+        err_rot, R_rot, s_rot = fit(-1.0)
         back = reflected & ~(err < REFLECTION_GAIN * err_rot)
-        R[back] = R_rot[back]
-    R[(total <= 0) | (var <= 1e-30)] = np.eye(2)
-    return Rotations(R, mu_s, mu_d, total)
+        R[back], s[back] = R_rot[back], s_rot[back]
+    none = (total <= 0) | (var <= 1e-30)
+    R[none], s[none] = np.eye(2), 1.0
+    return Rotations(R, s, mu_s, mu_d, total)
