@@ -66,13 +66,16 @@ class EdgePairs:
     half_edges: np.ndarray
     """(3F, 2) :func:`half_edges`; half-edge ``h`` is corner ``h % 3`` of face ``h // 3``"""
     a: np.ndarray
-    """(P,) one half-edge of each edge used by exactly two faces"""
+    """(P,) one half-edge of each edge used by exactly two faces (and of each pair matched
+    on an edge of more faces, where :func:`edge_pairs` had normals)"""
     b: np.ndarray
     """(P,) the other"""
     nonmanifold: int
     """edges used by more than two faces"""
     boundary: int
     """edges used by one face"""
+    matched: int = 0
+    """pairs of faces matched on edges of more than two faces (:func:`edge_pairs`)"""
 
     def disagreeing_faces(self) -> np.ndarray:
         """Faces on an edge of two faces that both run it the same way (wound against each other)."""
@@ -80,8 +83,53 @@ class EdgePairs:
         return np.unique(np.r_[self.a[same], self.b[same]] // 3)
 
 
-def edge_pairs(faces: np.ndarray) -> EdgePairs:
-    """:class:`EdgePairs` of ``faces`` (one sort of the half-edges by their undirected edge)."""
+def _matched(he: np.ndarray, order: np.ndarray, starts: np.ndarray, counts: np.ndarray,
+             normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(a, b): on each edge of more than two faces (the half-edges ``order[s:s + c]`` for
+    each start ``s`` and count ``c > 2``, as :func:`edge_pairs` sorted them), the faces
+    running it one way matched to those running it the other way so that matched faces'
+    ``normals`` agree most (sum of dot products; a face left over stays unmatched).
+
+    A double-sided surface (each face beside a copy wound the other way, on the same
+    vertices) has four faces on every edge: its front faces match each other (dot about 1)
+    and its back faces each other, where a front face and its own back copy (dot -1) would
+    fold the surface onto itself. A fin on a sheet keeps the sheet joined and the fin apart."""
+    from scipy.optimize import linear_sum_assignment
+
+    a, b = [], []
+    rest = [order[s:s + c] for s, c in zip(starts[counts > 4], counts[counts > 4])]
+    rest += list(order[starts[counts == 3][:, None] + np.arange(3)])
+    four = starts[counts == 4]
+    if len(four):  # the usual case (double-sided): two faces each way, two matchings, vectorised
+        h = order[four[:, None] + np.arange(4)]
+        fwd = he[h, 0] < he[h, 1]
+        balanced = fwd.sum(1) == 2
+        rest += list(h[~balanced])
+        h, fwd = h[balanced], fwd[balanced]
+        o = np.argsort(~fwd, axis=1, kind="stable")  # the two forward half-edges first
+        p1, p2, m1, m2 = (np.take_along_axis(h, o[:, k:k + 1], 1)[:, 0] for k in range(4))
+        n = normals
+        straight = (n[p1 // 3] * n[m1 // 3]).sum(1) + (n[p2 // 3] * n[m2 // 3]).sum(1)
+        crossed = (n[p1 // 3] * n[m2 // 3]).sum(1) + (n[p2 // 3] * n[m1 // 3]).sum(1)
+        swap = crossed > straight
+        a += [p1, p2]
+        b += [np.where(swap, m2, m1), np.where(swap, m1, m2)]
+    for g in rest:
+        fwd = he[g, 0] < he[g, 1]
+        p, m = g[fwd], g[~fwd]
+        if len(p) and len(m):
+            i, j = linear_sum_assignment(-(normals[p // 3] @ normals[m // 3].T))
+            a.append(p[i])
+            b.append(m[j])
+    empty = np.zeros(0, np.int64)
+    return (np.concatenate(a) if a else empty), (np.concatenate(b) if b else empty)
+
+
+def edge_pairs(faces: np.ndarray, normals: np.ndarray | None = None) -> EdgePairs:
+    """:class:`EdgePairs` of ``faces`` (one sort of the half-edges by their undirected edge).
+    With the faces' unit ``normals (F, 3)``, the faces on an edge of more than two faces are
+    matched in opposite-running pairs too (:func:`_matched`); without, such an edge pairs
+    nothing."""
     he = half_edges(faces)
     n = int(he.max()) + 1 if len(he) else 1
     key = he.min(1) * n + he.max(1)
@@ -90,7 +138,13 @@ def edge_pairs(faces: np.ndarray) -> EdgePairs:
     starts = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if len(ks) else np.zeros(0, np.int64)
     counts = np.diff(np.r_[starts, len(ks)])
     pair = starts[counts == 2]
-    return EdgePairs(he, order[pair], order[pair + 1], int((counts > 2).sum()), int((counts == 1).sum()))
+    a, b = order[pair], order[pair + 1]
+    many = np.flatnonzero(counts > 2)
+    matched = 0
+    if normals is not None and len(many):
+        ma, mb = _matched(he, order, starts, counts, normals)
+        a, b, matched = np.r_[a, ma], np.r_[b, mb], len(ma)
+    return EdgePairs(he, a, b, int(len(many)), int((counts == 1).sum()), matched)
 
 
 def consistent_winding(faces: np.ndarray, area: np.ndarray, pairs: EdgePairs | None = None) -> np.ndarray:

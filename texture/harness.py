@@ -177,12 +177,19 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> tuple[
     against = _majority_disagrees(sign, geom.area_3d, island)
     if reference is not None and against.any():
         # undecided: a reference facet within FOLD_TOL beyond the closest point faces the
-        # face's way (a thin part's other side, touching parts, the far side of a crease)
+        # face's way (a thin part's other side, touching parts, the far side of a crease):
+        # turned to its vertex normals' side (the reference's idea of outside, whatever its
+        # face, or a reference facet wound its way: on a double-sided reference (each face
+        # beside a copy wound the other way) the vertex normals cancel, and only the windings
+        # say that it faces both ways
         idx = np.flatnonzero(against)
         facet = facet_normals(reference.vertices, reference.faces, reference.normals)
+        wound = face_normals(reference.vertices, reference.faces)
 
         def supports(i, f):
-            return np.sign((facet[f] * geom.normal[idx[i]]).sum(1)) == -sign[idx[i]]
+            way = -sign[idx[i]]
+            return ((np.sign((facet[f] * geom.normal[idx[i]]).sum(1)) == way)
+                    | (np.sign((wound[f] * geom.normal[idx[i]]).sum(1)) == way))
 
         i, _, _ = reference.faces_within(centroid[idx], proj.distance[idx] + FOLD_TOL, where=supports)
         undecided[idx[np.unique(i)]] = True

@@ -11,9 +11,13 @@ oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered
   winding was scrambled (an STL or CAD export, a merge of flipped pieces) unwraps as the
   surface it is, not as the pieces its flips leave (a sphere with half its faces flipped
   at random: 1,353 islands, seam 81, utilisation 0.21, as xatlas gives too);
-- non-manifold edges (used by more than two faces) and edges whose two faces still disagree
-  on orientation (a non-orientable surface: a Mobius strip) are *cut* (their faces are not
-  connected across them), and
+- on a non-manifold edge (used by more than two faces) the faces running it one way are
+  matched to those running it the other way whose normals agree most
+  (:func:`mnacore.triangles.edge_pairs`): a double-sided surface (each face beside a copy
+  wound the other way, on the same vertices after welding) stays a front and a back
+  surface; the faces left over, and edges whose two faces still disagree on orientation (a
+  non-orientable surface: a Mobius strip), are *cut* (their faces are not connected
+  across them), and
   non-manifold vertices (several fans meeting at one point) are split into one working
   vertex per fan: a working vertex is a group of face corners on one welded point that
   are connected through the remaining (manifold, consistently oriented) edges;
@@ -34,7 +38,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from mnacore.errors import InputError
-from mnacore.triangles import EdgePairs, consistent_winding, edge_pairs, triangle_areas
+from mnacore.triangles import EdgePairs, consistent_winding, edge_pairs, face_normals, triangle_areas
 from mnacore.uvmesh import validate_mesh, weld_ids
 
 #: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
@@ -98,7 +102,7 @@ def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None) -> tuple[np.nd
     pairs = edge_pairs(wf) if pairs is None else pairs
     he, a, b = pairs.half_edges, pairs.a, pairs.b  # half-edge ids
     opposite = (he[a, 0] == he[b, 1]) & (he[a, 1] == he[b, 0])
-    stats = {"nonmanifold_edges": pairs.nonmanifold,
+    stats = {"nonmanifold_edges": pairs.nonmanifold, "nonmanifold_matched": pairs.matched,
              "inconsistent_edges": int((~opposite).sum()),
              "boundary_edges": pairs.boundary}
     a, b = a[opposite], b[opposite]
@@ -141,14 +145,17 @@ def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
     wf = weld[faces[keep]]
     pairs = edge_pairs(wf)
     turned = consistent_winding(wf, triangle_areas(vertices, faces[keep]), pairs)
+    fk = faces[keep]
     if turned.any():
         wf[turned] = wf[turned][:, [0, 2, 1]]
-        pairs = edge_pairs(wf)
+        fk[turned] = fk[turned][:, [0, 2, 1]]  # the corners in the working faces' order
+    if turned.any() or pairs.nonmanifold:
+        # faces on an edge of more than two are matched by their normals (a double-sided
+        # surface stays two surfaces, not one island per face)
+        pairs = edge_pairs(wf, face_normals(vertices, fk))
     corner_vertex_w, stats = corner_groups(wf, pairs)
     # position of a working vertex: the input position of (any) one of its corners
     pos = np.zeros((int(corner_vertex_w.max()) + 1, 3))
-    fk = faces[keep]
-    fk[turned] = fk[turned][:, [0, 2, 1]]  # the corners in the working faces' order
     pos[corner_vertex_w.ravel()] = vertices[fk.ravel()]
     corner_vertex = np.full(faces.shape, -1, np.int64)
     corner_vertex[keep] = corner_vertex_w

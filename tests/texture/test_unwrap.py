@@ -16,7 +16,7 @@ from texture_helpers import CENTER, SCALE, sphere_charts
 from mna import shapes
 from mnacore.charts import ChartGrids
 from mnacore.frame import Normalization, unit_ball_normalization
-from mnacore.triangles import signed_areas
+from mnacore.triangles import edge_pairs, signed_areas
 from texture.flatten import boundary_loop_count, euler_characteristic
 from texture.harness import measure
 from texture.meshprep import prepare_mesh
@@ -196,7 +196,8 @@ def test_the_unwrap_is_the_same_in_any_input_frame(scale, offset):
 def test_nonmanifold_duplicated_and_degenerate_input_keep_every_face():
     sheet = shapes.sheet(size=1.0, resolution=12)
     v = np.asarray(sheet.vertices, np.float64)
-    f = np.asarray(sheet.faces, np.int64)
+    f = np.array(sheet.faces, np.int64)
+    border = edge_pairs(f).boundary
     n = len(v)
     # a fin on the interior diagonal (13, 26): that edge is used three times
     v = np.vstack([v, [[0.15, 0.15, 0.4]], v[[5]]])  # new apex, and a duplicate of vertex 5
@@ -207,6 +208,10 @@ def test_nonmanifold_duplicated_and_degenerate_input_keep_every_face():
                    [[0, 1, 2]]])  # collinear: zero area (row 0 of the grid)
     prep = prepare_mesh(v, f)
     assert prep.stats["nonmanifold_edges"] == 1
+    # the sheet's two faces on that edge are matched (their normals agree), the fin is cut
+    # off: the working mesh's border is the sheet's and the fin's three edges
+    assert prep.stats["nonmanifold_matched"] == 1
+    assert edge_pairs(prep.work_faces).boundary == border + 3
     assert prep.stats["welded_vertices"] == 1
     assert prep.stats["degenerate_faces"] == 2
     mesh = trimesh.Trimesh(v, f, process=False)
@@ -724,6 +729,58 @@ def test_faces_wound_against_their_neighbours_unwrap_as_the_surface():
     for k in ("charts", "seam_length", "distortion_metric", "utilization"):
         assert mg[k] == pytest.approx(mw[k], rel=1e-9), k
     assert mg["flipped_faces"] == 0 and mg["mirrored_area_percent"] == 0.0
+
+
+def test_a_double_sided_surface_unwraps_as_its_two_sides():
+    """A double-sided sphere (each face beside a copy wound the other way, on the same
+    vertices: how some exporters write two-sided geometry) has four faces on every edge.
+    Cutting every non-manifold edge made one island per face (2,560 on an icosphere of
+    level 3). Its faces are matched by their normals instead (front with front, back with
+    back): it unwraps as two spheres, each side with the islands, seams and distortion of
+    that side alone (before packing), and the harness calls no face folded (the input faces
+    both ways)."""
+    uv, xyz, occ = sphere_charts(48)
+    charts = ChartGrids(uv, xyz, occ, 0.5, Normalization(CENTER, SCALE))
+    mesh = shapes.sphere(radius=1.0, subdivisions=3)
+    mesh.apply_scale(SCALE)
+    mesh.apply_translation(CENTER)
+    f = np.asarray(mesh.faces)
+    F = len(f)
+    both = np.vstack([f, f[:, ::-1]])
+    prep = prepare_mesh(mesh.vertices, both)
+    edges = len(mesh.edges_unique)
+    assert prep.stats["nonmanifold_edges"] == edges and prep.stats["nonmanifold_matched"] == 2 * edges
+    assert prep.stats["components"] == 2 and prep.stats["inconsistent_edges"] == 0
+    np.testing.assert_array_equal(prep.component, np.repeat([0, 1], F))
+    # no halvings for packing: the sphere alone would be halved where the two sides pack
+    # well enough as they are
+    cfg = replace(FAST, pack_max_cuts=0)
+    front = unwrap_mesh(mesh.vertices, f, charts, cfg)
+    back = unwrap_mesh(mesh.vertices, f[:, ::-1], charts, cfg)
+    two = unwrap_mesh(mesh.vertices, both, charts, cfg)
+    n = int(front.island.max()) + int(back.island.max()) + 2
+    assert int(two.island.max()) + 1 == n
+    assert set(two.island[:F]).isdisjoint(two.island[F:])  # no island holds both sides
+    np.testing.assert_array_equal(two.mesh.vertices[two.mesh.faces], np.asarray(mesh.vertices)[both])
+    mf, mb, m2 = (measure(r.mesh).summary for r in (front, back, two))
+    # each side's cut length over sqrt(twice the area)
+    assert m2["seam_length"] == pytest.approx((mf["seam_length"] + mb["seam_length"]) / np.sqrt(2), rel=1e-6)
+    assert m2["flipped_faces"] == 0 and m2["mirrored_area_percent"] == 0.0
+
+    def angles(r, sel=slice(None)):
+        p = r.mesh.uv[r.mesh.faces[sel]]
+        u, v = np.roll(p, -1, 1) - p, np.roll(p, 1, 1) - p
+        return np.arctan2(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0], (u * v).sum(-1))
+
+    # each side's map is that side's alone, turned, moved and scaled (one scale for both)
+    np.testing.assert_allclose(angles(two, slice(None, F)), angles(front), atol=1e-6)
+    np.testing.assert_allclose(angles(two, slice(F, None)), angles(back), atol=1e-6)
+    for side, alone in ((slice(None, F), front), (slice(F, None), back)):
+        ratio = signed_areas(two.mesh.uv, two.mesh.faces[side]) / signed_areas(alone.mesh.uv, alone.mesh.faces)
+        np.testing.assert_allclose(ratio, (two.stats["pack"]["scale"] / alone.stats["pack"]["scale"]) ** 2, rtol=1e-5)
+    ref = trimesh.Trimesh(mesh.vertices, both, process=False)
+    mr = measure(two.mesh, reference=ref).summary
+    assert mr["folded_faces"] == 0 and mr["orientation_undecided_area_percent"] > 40
 
 
 def test_a_moebius_strip_is_cut_where_its_winding_cannot_agree():
