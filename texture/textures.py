@@ -167,19 +167,50 @@ def bake(mesh_unit: UVMesh, source, size: int, padding: int = 8, background=(0.0
     colors, uv_src, image = source_colors(source)
     face, bary = face_id_image(mesh_unit.uv[mesh_unit.faces], size, size)
     mask = face >= 0
-    pts = (bary[mask][:, :, None] * mesh_unit.vertices[mesh_unit.faces[face[mask]]]).sum(1)
-    proj = MeshProjector(np.asarray(source.vertices), np.asarray(source.faces)).project(pts)
-    corners = np.asarray(source.faces)[proj.face]
-    if colors is not None:
-        rgb = (proj.bary[:, :, None] * colors[corners]).sum(1)
+    src_faces = np.asarray(source.faces)
+    perm = same_triangles(mesh_unit.vertices, mesh_unit.faces, np.asarray(source.vertices), src_faces)
+    if perm is not None:
+        # the source's own triangles (an unwrap writes the input's faces): each texel reads
+        # its own face, where the closest point can land on another (a double-sided card's
+        # other side, two parts that touch)
+        src_face = face[mask]
+        src_bary = np.zeros_like(bary[mask])
+        np.put_along_axis(src_bary, perm[src_face], bary[mask], axis=1)
     else:
-        st = (proj.bary[:, :, None] * uv_src[corners]).sum(1)
+        pts = (bary[mask][:, :, None] * mesh_unit.vertices[mesh_unit.faces[face[mask]]]).sum(1)
+        proj = MeshProjector(np.asarray(source.vertices), src_faces).project(pts)
+        src_face, src_bary = proj.face, proj.bary
+    corners = src_faces[src_face]
+    if colors is not None:
+        rgb = (src_bary[:, :, None] * colors[corners]).sum(1)
+    else:
+        st = (src_bary[:, :, None] * uv_src[corners]).sum(1)
         rgb = sample_bilinear(image, st)
     out = np.zeros((size, size, 3))
     out[:] = background
     out[mask] = rgb[:, :3]
     out, _ = dilate(out, mask, padding)
     return np.clip(out, 0.0, 1.0)
+
+
+#: corners of two triangles this close (relative to the bounding-box diagonal) are the same
+SAME_CORNER_TOL = 1e-6
+
+
+def same_triangles(vertices: np.ndarray, faces: np.ndarray, src_vertices: np.ndarray,
+                   src_faces: np.ndarray) -> np.ndarray | None:
+    """(F, 3) the source corner of each corner of every face, where face ``f`` of
+    ``(vertices, faces)`` is the triangle of source face ``f`` (its corners in any order: an
+    unwrap writes a face wound against its neighbours turned), else None."""
+    if len(faces) != len(src_faces) or len(faces) == 0:
+        return None
+    a = np.asarray(vertices, np.float64)[faces]
+    b = np.asarray(src_vertices, np.float64)[src_faces]
+    tol = SAME_CORNER_TOL * max(float(np.ptp(b.reshape(-1, 3), axis=0).max()), 1e-300)
+    d = np.linalg.norm(a[:, :, None, :] - b[:, None, :, :], axis=-1)  # (F, 3, 3)
+    perm = d.argmin(2)
+    ok = (np.take_along_axis(d, perm[:, :, None], 2)[..., 0] <= tol).all()
+    return perm if ok and (np.sort(perm, axis=1) == np.arange(3)).all() else None
 
 
 def source_colors(source):

@@ -13,6 +13,7 @@ from mna import shapes
 from mna.cli import main
 from texture.export import read_back
 from texture.harness import measure
+from texture.textures import read_image, sample_bilinear
 
 SMALL = ["--size", "256", "--padding", "2"]
 
@@ -281,3 +282,26 @@ def test_faces_wound_against_their_neighbours_are_written_wound_like_them_and_sa
     assert_glb_validates(tmp_path / "out" / "mesh.glb")
     assert main(["unwrap", str(run / "input.ply"), "-o", str(tmp_path / "own"), *args]) == 0
     assert "wound against" not in capsys.readouterr().out
+
+
+def test_bake_reads_each_face_its_own_colour_on_a_double_sided_input(tmp_path):
+    """A double-sided sphere whose outside is red and whose inside is blue (each face beside
+    a copy wound the other way, on vertex copies of their own): `--texture bake` writes each
+    face the colour of its own side. The output's faces are the input's, so every texel reads
+    its own face; the closest point on the input is a tie between the two sides."""
+    run = write_sphere_run(tmp_path / "run", G=32, colored_input=False)
+    sphere = trimesh.load(run / "input.ply", process=False)
+    v, f = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+    n = len(v)
+    colours = np.repeat([[230, 20, 20, 255], [20, 20, 230, 255]], n, axis=0).astype(np.uint8)
+    both = trimesh.Trimesh(np.vstack([v, v]), np.vstack([f, f[:, ::-1] + n]), vertex_colors=colours, process=False)
+    both.export(tmp_path / "two_sided.ply")
+    out = tmp_path / "out"
+    assert main(["unwrap", str(tmp_path / "two_sided.ply"), "-o", str(out), "--run", str(run), "--texture", "bake",
+                 "--no-progress", *SMALL]) == 0
+    back = read_back(out / "mesh.obj")
+    np.testing.assert_allclose(back.vertices[back.faces], both.vertices[both.faces], atol=1e-6)
+    img = read_image(out / "mesh_texture.png")
+    rgb = sample_bilinear(img, back.uv[back.faces].mean(1))
+    want = np.repeat([[230, 20, 20], [20, 20, 230]], len(f), axis=0) / 255
+    np.testing.assert_allclose(rgb, want, atol=2 / 255)
