@@ -168,18 +168,19 @@ def bake(mesh_unit: UVMesh, source, size: int, padding: int = 8, background=(0.0
     face, bary = face_id_image(mesh_unit.uv[mesh_unit.faces], size, size)
     mask = face >= 0
     src_faces = np.asarray(source.faces)
-    perm = same_triangles(mesh_unit.vertices, mesh_unit.faces, np.asarray(source.vertices), src_faces)
-    if perm is not None:
-        # the source's own triangles (an unwrap writes the input's faces): each texel reads
-        # its own face, where the closest point can land on another (a double-sided card's
-        # other side, two parts that touch)
-        src_face = face[mask]
-        src_bary = np.zeros_like(bary[mask])
-        np.put_along_axis(src_bary, perm[src_face], bary[mask], axis=1)
-    else:
-        pts = (bary[mask][:, :, None] * mesh_unit.vertices[mesh_unit.faces[face[mask]]]).sum(1)
+    # a face that is a source triangle (an unwrap writes the input's faces) reads that
+    # triangle at its own barycentrics, where the closest point can land on another (a
+    # double-sided card's other side, two parts that touch); the others are projected
+    match, perm = same_triangles(mesh_unit.vertices, mesh_unit.faces, np.asarray(source.vertices), src_faces)
+    f, w = face[mask], bary[mask]
+    src_face = match[f]
+    src_bary = np.zeros_like(w)
+    np.put_along_axis(src_bary, perm[f], w, axis=1)
+    far = src_face < 0
+    if far.any():
+        pts = (w[far][:, :, None] * mesh_unit.vertices[mesh_unit.faces[f[far]]]).sum(1)
         proj = MeshProjector(np.asarray(source.vertices), src_faces).project(pts)
-        src_face, src_bary = proj.face, proj.bary
+        src_face[far], src_bary[far] = proj.face, proj.bary
     corners = src_faces[src_face]
     if colors is not None:
         rgb = (src_bary[:, :, None] * colors[corners]).sum(1)
@@ -193,24 +194,51 @@ def bake(mesh_unit: UVMesh, source, size: int, padding: int = 8, background=(0.0
     return np.clip(out, 0.0, 1.0)
 
 
-#: corners of two triangles this close (relative to the bounding-box diagonal) are the same
-SAME_CORNER_TOL = 1e-6
+def _cyclic_keys(ids: np.ndarray) -> np.ndarray:
+    """(F, 3) each triangle's point ids turned (cyclically: the winding kept) to start at its least."""
+    k = np.argmin(ids, axis=1)
+    return np.take_along_axis(ids, (k[:, None] + np.arange(3)) % 3, axis=1)
+
+
+def _lookup(keys: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """(N,) the first row of ``table (M, 3)`` equal to each row of ``keys (N, 3)``, -1 where none is."""
+    _, inv = np.unique(np.vstack([table, keys]), axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    first = np.full(int(inv.max()) + 1, -1, np.int64)
+    first[inv[:len(table)][::-1]] = np.arange(len(table))[::-1]
+    return first[inv[len(table):]]
 
 
 def same_triangles(vertices: np.ndarray, faces: np.ndarray, src_vertices: np.ndarray,
-                   src_faces: np.ndarray) -> np.ndarray | None:
-    """(F, 3) the source corner of each corner of every face, where face ``f`` of
-    ``(vertices, faces)`` is the triangle of source face ``f`` (its corners in any order: an
-    unwrap writes a face wound against its neighbours turned), else None."""
-    if len(faces) != len(src_faces) or len(faces) == 0:
-        return None
-    a = np.asarray(vertices, np.float64)[faces]
-    b = np.asarray(src_vertices, np.float64)[src_faces]
-    tol = SAME_CORNER_TOL * max(float(np.ptp(b.reshape(-1, 3), axis=0).max()), 1e-300)
-    d = np.linalg.norm(a[:, :, None, :] - b[:, None, :, :], axis=-1)  # (F, 3, 3)
-    perm = d.argmin(2)
-    ok = (np.take_along_axis(d, perm[:, :, None], 2)[..., 0] <= tol).all()
-    return perm if ok and (np.sort(perm, axis=1) == np.arange(3)).all() else None
+                   src_faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((F,) the source face whose triangle each face of ``(vertices, faces)`` is, -1 where
+    none is; (F, 3) the source corner of each of its corners).
+
+    Face ``f`` is first compared with source face ``f`` (an unwrap writes the input's faces
+    in their order, a face wound against its neighbours turned: its corners in any order);
+    the rest are looked up by their points in winding order, then reversed (a reader that
+    regroups faces by material). Points are welded as the rest of mna welds them
+    (:func:`mnacore.uvmesh.weld_ids`)."""
+    from mnacore.uvmesh import weld_ids
+
+    faces, src_faces = np.asarray(faces, np.int64), np.asarray(src_faces, np.int64)
+    ids = weld_ids(np.vstack([np.asarray(vertices, np.float64), np.asarray(src_vertices, np.float64)]))
+    a, b = ids[:len(vertices)][faces], ids[len(vertices):][src_faces]
+    src = np.full(len(faces), -1, np.int64)
+    n = min(len(faces), len(src_faces))
+    same = (np.sort(a[:n], axis=1) == np.sort(b[:n], axis=1)).all(1)
+    src[:n][same] = np.flatnonzero(same)
+    rest = np.flatnonzero(src < 0)
+    if len(rest):
+        table = _cyclic_keys(b)
+        for keys in (_cyclic_keys(a[rest]), _cyclic_keys(a[rest][:, ::-1])):
+            todo = src[rest] < 0
+            src[rest[todo]] = _lookup(keys[todo], table)
+    perm = np.zeros((len(faces), 3), np.int64)
+    hit = src >= 0
+    eq = a[hit][:, :, None] == b[src[hit]][:, None, :]  # (H, 3, 3): output corner k is source corner k'
+    perm[hit] = eq.argmax(2)
+    return src, perm
 
 
 def source_colors(source):

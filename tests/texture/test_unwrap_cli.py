@@ -13,7 +13,7 @@ from mna import shapes
 from mna.cli import main
 from texture.export import read_back
 from texture.harness import measure
-from texture.textures import read_image, sample_bilinear
+from texture.textures import read_image, same_triangles, sample_bilinear
 
 SMALL = ["--size", "256", "--padding", "2"]
 
@@ -305,3 +305,26 @@ def test_bake_reads_each_face_its_own_colour_on_a_double_sided_input(tmp_path):
     rgb = sample_bilinear(img, back.uv[back.faces].mean(1))
     want = np.repeat([[230, 20, 20], [20, 20, 230]], len(f), axis=0) / 255
     np.testing.assert_allclose(rgb, want, atol=2 / 255)
+
+
+def test_same_triangles_finds_each_face_among_regrouped_and_turned_source_faces():
+    """The bake's face match: the unwrap's faces against a source read in another order (a
+    reader that regroups faces by material, its corners rotated), a face turned (corners 2
+    and 3 swapped, as the unwrap writes a face wound against its neighbours), and a face the
+    source does not hold (-1: the bake projects it)."""
+    rng = np.random.default_rng(0)
+    v = rng.random((60, 3)) * 40.0 - 7.0
+    f = np.array([rng.choice(60, 3, replace=False) for _ in range(90)])
+    order = rng.permutation(90)
+    src_f = f[order].copy()
+    src_f[::3] = np.roll(src_f[::3], 1, axis=1)
+    out_f = f.copy()
+    out_f[5] = out_f[5][[0, 2, 1]]
+    out_v = np.vstack([v, [[100.0, 100.0, 100.0]]])
+    out_f[7, 0] = 60  # a corner the source does not have
+    match, perm = same_triangles(out_v, out_f, v, src_f)
+    want = np.argsort(order)
+    want[7] = -1
+    np.testing.assert_array_equal(match, want)
+    ok = match >= 0
+    np.testing.assert_array_equal(src_f[match[ok]][np.arange(ok.sum())[:, None], perm[ok]], out_f[ok])
