@@ -31,7 +31,10 @@ Summary keys (example values in docs/texture.md):
                        (1 % of the diameter) beyond its closest distance faces its way:
                        where the reference has both orientations that close (the two sides
                        of a thin part, touching parts, the far side of a sharp crease) the
-                       orientation is not determined at the fit's resolution.
+                       orientation is not determined at the fit's resolution. A facet faces
+                       a way by its vertex normals' side or by its own winding: on a
+                       double-sided reference (each face beside a copy wound the other way)
+                       the vertex normals cancel, and only the windings show both ways.
 ``orientation_undecided_area_percent`` the 3D area of those faces.
 ``uv_overlap_percent`` texels of ``resolution^2`` covered by >= 2 faces, percent of
                        covered texels (UV bounding box mapped to the square if UVs leave
@@ -177,11 +180,10 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> tuple[
     against = _majority_disagrees(sign, geom.area_3d, island)
     if reference is not None and against.any():
         # undecided: a reference facet within FOLD_TOL beyond the closest point faces the
-        # face's way (a thin part's other side, touching parts, the far side of a crease):
+        # face's way (a thin part's other side, touching parts, the far side of a crease),
         # turned to its vertex normals' side (the reference's idea of outside, whatever its
-        # face, or a reference facet wound its way: on a double-sided reference (each face
-        # beside a copy wound the other way) the vertex normals cancel, and only the windings
-        # say that it faces both ways
+        # winding) or as wound: on a double-sided reference (each face beside a copy wound
+        # the other way) the vertex normals cancel, and only the windings face both ways
         idx = np.flatnonzero(against)
         facet = facet_normals(reference.vertices, reference.faces, reference.normals)
         wound = face_normals(reference.vertices, reference.faces)
