@@ -198,7 +198,8 @@ def best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict,
     for plan, arrays, index, layout, placed, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
         if plan.utilization <= max(floor, best.utilization if best is not None else 0.0):
             break
-        got = Packed(layout, m, pack_islands(*arrays, plan=plan, **kw), placed, index)
+        bar = max(floor, best.utilization if best is not None else 0.0)
+        got = Packed(layout, m, pack_islands(*arrays, plan=plan, floor=bar, **kw), placed, index)
         if best is None or got.utilization > best.utilization:
             best = got
     # a plan above the floor can pack below it (the unmirroring above): then nothing passed
