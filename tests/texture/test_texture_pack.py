@@ -466,6 +466,36 @@ def test_exhaustive_placement_runs_at_the_coarse_resolution_only(monkeypatch):
     assert pack.full_options(brute) == {} and pack.full_options({**brute, "rotate_charts": False}) == {"rotate_charts": False}
 
 
+def test_unmirroring_skips_what_cannot_pass_the_caller_floor(monkeypatch):
+    """A caller keeps a packing only above a floor (its best so far): keeping the islands
+    unmirrored tries only the scale steps whose utilisation, grown, can pass it (the texels
+    grow with the scale squared), and the full-resolution search without turns only where
+    its coarse plan packs above it. Without a floor every step and the search run."""
+    uv, faces, island = _long_thin_islands()
+    isl = IslandSet.of(uv, faces, island)
+    plan = plan_layouts([(uv, faces, island)], candidates=({},), resolution=1024, padding=4)[0]
+    assert mirrored_islands(isl, plan.uv), "the plan (turns allowed) mirrors some island"
+    best = pack.Candidate(plan.utilization, plan.texels_per_unit, plan.uv * 1024, plan.options)
+    tried, searched = [], []
+    monkeypatch.setattr(pack, "attempt", lambda *a, **k: tried.append(a[3]) or None)  # every try fails
+    monkeypatch.setattr(pack, "search", lambda *a, **k: searched.append(a) or None)
+    steps = DEFAULT_POLICY.unmirror_steps
+    assert pack._without_mirrors(isl, 1024, 4, best, DEFAULT_POLICY) is None
+    assert len(tried) == steps and len(searched) == 1
+    # steps 0-2 reach utilisation * 0.985^(2k) * 1.0075^2 above this floor, step 3 does not
+    floor = best.utilization * (pack.FINE_SHRINK ** 2.5 * pack.GROW_STEPS[0]) ** 2
+    plain = plan_layouts([(uv, faces, island)], candidates=({"rotate_charts": False},), resolution=1024,
+                         padding=4)[0]
+    assert 0 < plain.utilization < floor
+    tried.clear(), searched.clear()
+    assert pack._without_mirrors(isl, 1024, 4, best, DEFAULT_POLICY, floor) is None
+    np.testing.assert_allclose(tried, best.tpu * pack.FINE_SHRINK ** np.arange(3) * 256 / 1024)
+    assert searched == []
+    tried.clear()
+    pack._without_mirrors(isl, 1024, 4, best, DEFAULT_POLICY, 0.99 * plain.utilization)
+    assert len(tried) == steps and len(searched) == 1
+
+
 def test_rotations_of_many_sets_at_once_equal_one_fit_each():
     """similarity_rotations is similarity_fit batched: on 60 point sets (rotated or mirrored,
     scaled by 1.7, some noisy, some of zero total weight or zero spread) it gives each set's
