@@ -110,6 +110,19 @@ def make_uv_mesh(vertices, faces, uv, *, name: str = "mesh") -> UVMesh:
     return UVMesh(vertices, faces, uv)
 
 
+def _cloud_hint(path: Path) -> str:
+    """What to say of a file with no faces: a point cloud (read as a mesh it is empty) is
+    what `mna fit` takes, not a mesh to unwrap."""
+    import trimesh
+
+    try:
+        cloud = trimesh.load(path, process=False)
+    except Exception:  # unreadable as anything: nothing to add
+        return ""
+    n = len(cloud.vertices) if isinstance(cloud, trimesh.PointCloud) else 0
+    return f" (a point cloud of {n} points: `mna fit` reconstructs it)" if n else ""
+
+
 def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
     """Read a triangle mesh file with trimesh (no processing): ``trimesh.Trimesh``, or ``InputError``
     for a missing file, a wrong format (the first bytes), no faces or NaN / overflowing positions.
@@ -130,7 +143,7 @@ def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
     except Exception as exc:  # trimesh raises many types on unreadable files
         raise InputError(read_failure(path, exc)) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError(f"{path} holds no triangle faces")
+        raise InputError(f"{path} holds no triangle faces{_cloud_hint(path)}")
     check_coordinates(mesh.vertices[np.unique(mesh.faces)], path.name)
     return mesh
 

@@ -86,13 +86,16 @@ def _write(path: Path, text: str) -> Path:
     return path
 
 
-@pytest.mark.parametrize("case", ["no_faces", "nan", "run_missing", "run_garbage"])
+@pytest.mark.parametrize("case", ["no_faces", "point_cloud", "nan", "run_missing", "run_garbage"])
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, case):
     good = tmp_path / "good.obj"
     shapes.sphere(subdivisions=1).export(good)
     mesh, extra = good, []
     if case == "no_faces":
         mesh = _write(tmp_path / "nofaces.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    elif case == "point_cloud":
+        mesh = tmp_path / "cloud.ply"
+        trimesh.PointCloud(np.random.default_rng(0).normal(size=(40, 3))).export(mesh)
     elif case == "nan":
         mesh = _write(tmp_path / "nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n")
     elif case == "run_missing":
@@ -106,6 +109,8 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, case)
     assert main(["unwrap", str(mesh), "-o", str(out), *extra, *SMALL]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("mna unwrap: error:") and len(err.splitlines()) == 1
+    if case == "point_cloud":
+        assert "no triangle faces (a point cloud of 40 points: `mna fit` reconstructs it)" in err
     assert not out.exists()
 
 
