@@ -196,9 +196,9 @@ def best_packed(layouts: list[list[Island]], modes: list[int], cfg, cache: dict,
             plans.append((plan, arrays, index, layout, placed, m))
     best = None
     for plan, arrays, index, layout, placed, m in sorted(plans, key=lambda p: -p[0].utilization):  # stable: ties keep order
-        if plan.utilization <= max(floor, best.utilization if best is not None else 0.0):
+        bar = max(floor, best.utilization if best is not None else 0.0)  # what a packing must beat
+        if plan.utilization <= bar:
             break
-        bar = max(floor, best.utilization if best is not None else 0.0)
         got = Packed(layout, m, pack_islands(*arrays, plan=plan, floor=bar, **kw), placed, index)
         if best is None or got.utilization > best.utilization:
             best = got

@@ -158,8 +158,8 @@ def pack_islands(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, *, resol
     another or comes back mirrored, and all stay inside the unit square.
 
     ``floor``: the utilisation a caller keeps this packing only above (it has one that good):
-    the unmirroring's last resort, a full-resolution search, runs only where its coarse plan
-    packs above it (:func:`_without_mirrors`); what is returned may still be below it.
+    keeping islands unmirrored skips what cannot pass it (:func:`_without_mirrors`); what is
+    returned may still be below it.
     """
     t0 = time.perf_counter()
     isl = IslandSet.of(uv, faces, island)
