@@ -152,8 +152,9 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
     local = inv.reshape(-1, 3)
     split, src = split_pinched(local)
     out = []
-    for comp in np.unique(face_components(split)):  # a pinch split can separate pieces
-        sel = np.flatnonzero(face_components(split) == comp)
+    pieces = face_components(split)
+    for comp in np.unique(pieces):  # a pinch split can separate pieces
+        sel = np.flatnonzero(pieces == comp)
         cv, ci = np.unique(split[sel], return_inverse=True)
         f = ci.reshape(-1, 3)
         p = xyz[vid[src[cv]]]
