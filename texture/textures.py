@@ -23,8 +23,9 @@ from scipy import ndimage
 from mnacore.atomic import atomic_path
 from mnacore.errors import InputError
 from mnacore.triangles import triangle_areas
-from mnacore.uvmesh import UVMesh
+from mnacore.uvmesh import UVMesh, weld_ids
 
+from .islands import unique_rows
 from .raster import face_id_image
 
 #: default checker square: 0.1 of the unit ball (20 squares across the diameter).
@@ -202,11 +203,9 @@ def _cyclic_keys(ids: np.ndarray) -> np.ndarray:
 
 def _lookup(keys: np.ndarray, table: np.ndarray) -> np.ndarray:
     """(N,) the first row of ``table (M, 3)`` equal to each row of ``keys (N, 3)``, -1 where none is."""
-    _, inv = np.unique(np.vstack([table, keys]), axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
-    first = np.full(int(inv.max()) + 1, -1, np.int64)
-    first[inv[:len(table)][::-1]] = np.arange(len(table))[::-1]
-    return first[inv[len(table):]]
+    first, ids = unique_rows(np.vstack([table, keys]))
+    row = first[ids[len(table):]]  # the table's rows come first: a key in it finds its first row there
+    return np.where(row < len(table), row, -1)
 
 
 def same_triangles(vertices: np.ndarray, faces: np.ndarray, src_vertices: np.ndarray,
@@ -219,8 +218,6 @@ def same_triangles(vertices: np.ndarray, faces: np.ndarray, src_vertices: np.nda
     the rest are looked up by their points in winding order, then reversed (a reader that
     regroups faces by material). Points are welded as the rest of mna welds them
     (:func:`mnacore.uvmesh.weld_ids`)."""
-    from mnacore.uvmesh import weld_ids
-
     faces, src_faces = np.asarray(faces, np.int64), np.asarray(src_faces, np.int64)
     ids = weld_ids(np.vstack([np.asarray(vertices, np.float64), np.asarray(src_vertices, np.float64)]))
     a, b = ids[:len(vertices)][faces], ids[len(vertices):][src_faces]
