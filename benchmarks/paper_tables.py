@@ -153,7 +153,8 @@ def per_shape_run(spec: dict, s: Sizes, work: Path, out: Path, device: str) -> d
 
     cfg = C.fast()
     cfg.steps, cfg.seed, cfg.device = s.fit_steps, spec["seed"], device
-    cfg.loss.w_orient = 0.0  # an mna extension, not the paper's method: off for every variant
+    # mna extensions, not the paper's method: off for every variant
+    cfg.loss.w_orient = cfg.loss.w_surface = 0.0
     cfg = paper.configure(cfg, spec["variant"], spec["method"], spec["charts"], spec["ldist"])
     t0 = time.perf_counter()
     res = fit_run(str(shape_path(spec["shape"], work)), out, cfg, progress_bar=False, log=lambda _: None,

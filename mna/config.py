@@ -51,6 +51,11 @@ class LossConfig:
     """Weight of L_orient (an mna extension, not in the paper; needs a mesh input): the share of
     positives whose chart normal points against the input's normal, per chart's majority.
     Charts that turn inside out become folded faces in the atlas; 0 = off."""
+    w_surface: float = 0.0
+    """Weight of L_surf (an mna extension, not in the paper): the mean squared distance of
+    chart samples, in the domain or not, to their nearest target (over ``surface_samples``
+    UV samples per chart). It keeps the whole square of every chart on the surface, so the
+    part of a chart outside its domain lies where targets are and can take them; 0 = off."""
 
 
 @dataclass
@@ -79,6 +84,8 @@ class AtlasSettings:
     ablation: AblationConfig = field(default_factory=AblationConfig)
     dist_samples: int = 0
     """Positives per chart (and item) whose Jacobian enters L_dist (0 = all, as the paper)."""
+    surface_samples: int = 1000
+    """UV samples per chart (and item), the first of each step's draw, that enter L_surf."""
     lr: float = 1e-3
     """Adam learning rate."""
     tau: float = 0.5
@@ -113,6 +120,7 @@ class AtlasSettings:
         for key in ("eval_points", "eval_uv_samples", "c_samples"):
             check_int(getattr(self, key), key, 1)
         check_int(self.dist_samples, "dist_samples", 0)
+        check_int(self.surface_samples, "surface_samples", 1)
         check_int(self.grid, name("grid"), 2, MAX_GRID)
         check_float(self.lr, "lr", 0, 1e3, low_open=True)
         check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)
@@ -139,6 +147,9 @@ class FitConfig(AtlasSettings):
     ``max_charts``; ``model.charts`` is saved as grown."""
     max_charts: int = 6
     """Cap of the ``grow`` rule."""
+    surface_until: float = 1.0
+    """Fraction of the fit after which L_surf (``loss.w_surface``) is left out: it places the
+    charts while the lr is high; from the decay on the fit refines them without it."""
     hard_targets: int = 0
     """Extra targets per step drawn where the fit errs most (:mod:`mna.hard_targets`); they
     pull on the charts but do not label occupancy. 0 = off (the paper)."""
@@ -176,6 +187,7 @@ class FitConfig(AtlasSettings):
         check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
         check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
+        check_float(self.surface_until, "surface_until", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
         if not isinstance(self.preset, str):
             raise MnaError(f"preset must be a string, got {self.preset!r}")
@@ -245,7 +257,7 @@ def validate_model(m: ModelConfig, where: str = "model.", charts_name: str = "--
 
 def validate_loss(loss: LossConfig, where: str = "loss.") -> None:
     """Loss weights are finite and >= 0; eps > 0."""
-    for name in ("w_rec", "w_occ", "w_dist", "w_orient"):
+    for name in ("w_rec", "w_occ", "w_dist", "w_orient", "w_surface"):
         check_float(getattr(loss, name), where + name, 0, 1e12)
     check_float(loss.eps, where + "eps", 0, 1, low_open=True)
 
@@ -269,7 +281,12 @@ def fast() -> FitConfig:
         # charts fold inside out where the surface curves sharply; at 2,000 steps on that scan
         # the inside-out chart area fell 5.6 % -> 0.4 % (11 -> 4 trimmed islands), while
         # 1e-2 raised distortion to 0.49
-        loss=LossConfig(w_dist=1e-4, w_orient=1e-3),
+        # L_surf while the lr is high (benchmarks/RESULTS.md, fit_quality_hard, twenty-fifth
+        # session): it keeps each chart's whole square on the surface, so the parts outside
+        # the domains lie where uncovered surface can take them (walls of holes, parts)
+        loss=LossConfig(w_dist=1e-4, w_orient=1e-3, w_surface=0.1),
+        surface_samples=1000,
+        surface_until=0.55,
         lr=1e-3,
         lr_decay_start=0.55,
         lr_final=0.02,

@@ -97,7 +97,8 @@ class Fitter:
             nrm = None if nrm is None else np.concatenate([nrm, hn])
         targets = torch.from_numpy(pts).float().to(dev)
         normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
-        terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets)
+        terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets,
+                             surface=self.progress() < cfg.surface_until)
         if self.errors is not None:
             self.errors.record(elements, terms.distance[0].cpu().numpy())
         total = terms.total

@@ -6,6 +6,14 @@ gradients (and exact Jacobians) at the unique positives only. L_rec and L_dist o
 touch positives (a target's nearest sample is a positive), so this equals evaluating every
 sample with gradients, at a fraction of the cost. L_occ trains ``l_k`` on all samples with
 ``phi`` detached (paper: no gradient from L_occ into the charts).
+
+L_surf (``loss.w_surface``, an mna extension) is the other direction of the Chamfer distance,
+from chart samples to their nearest target, on a random subset of every chart's samples
+whether they lie in the domain or not. Without it only positives get a gradient from the
+reconstruction, so the part of a chart outside its domain drifts where no target is, and
+a stretch of surface that no chart reaches (the walls of a plate's holes, a wheel beside a
+body) can only be taken by pulling a domain's edge across to it. With it, every chart's
+whole square lies on the surface, and its outside parts lie where they can become positives.
 """
 from __future__ import annotations
 
@@ -28,28 +36,47 @@ class LossTerms(NamedTuple):
     orient: torch.Tensor | None = None
     distance: torch.Tensor | None = None
     """``(B, T)`` distance of every target to its nearest chart sample (no gradient)."""
+    surface: torch.Tensor | None = None
 
 
 def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig,
                  z: torch.Tensor | None = None, normals: torch.Tensor | None = None,
-                 labelled: int | None = None) -> LossTerms:
+                 labelled: int | None = None, surface: bool = True) -> LossTerms:
     """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame).
 
     ``normals (B, T, 3)``: unit surface normals of the targets, for L_orient (``w_orient > 0``;
     without normals the term is 0). ``labelled``: only the first ``labelled`` targets of each
     shape label PU positives (the uniform draw; the rest are hard examples that only pull,
-    :mod:`mna.hard_targets`); None = all.
+    :mod:`mna.hard_targets`); None = all. ``surface``: False leaves L_surf out this step (a fit's
+    schedule, ``FitConfig.surface_until``).
     """
     orient = torch.zeros((), device=uv.device)
+    want_surface = surface and cfg.loss.w_surface > 0
+    surface = torch.zeros((), device=uv.device)
     if cfg.ablation.atlasnet:
         rec, dist, n, d = _atlasnet_terms(model, uv, targets, cfg, z)
         occ = torch.zeros((), device=uv.device)
     else:
         rec, dist, occ, n, o, d = _mna_terms(model, uv, targets, cfg, z, normals, labelled)
         orient = o if o is not None else orient
+        if want_surface:
+            surface = _surface_term(model, uv[:, :, :cfg.surface_samples], targets, z)
     w = cfg.loss
-    total = w.w_rec * rec + w.w_occ * occ + w.w_dist * dist + w.w_orient * orient
-    return LossTerms(total, rec, occ, dist, n, orient, d)
+    total = w.w_rec * rec + w.w_occ * occ + w.w_dist * dist + w.w_orient * orient + w.w_surface * surface
+    return LossTerms(total, rec, occ, dist, n, orient, d, surface)
+
+
+def _surface_term(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, z) -> torch.Tensor:
+    """L_surf at ``uv (K, B, H, 2)``: mean squared distance of the chart points to their nearest
+    target, per shape (all charts together), averaged over the batch. UV samples are i.i.d., so
+    the first ``H`` of a step's draw are a random subset."""
+    K, B, H, _ = uv.shape
+    x = model.chart(uv, z).x
+    terms = []
+    for b in range(B):
+        pts = x[:, b].reshape(K * H, 3)
+        terms.append(losses.chamfer_to(pts, targets[b], nearest(pts, targets[b]).index.to(uv.device)))
+    return torch.stack(terms).mean()
 
 
 def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z, normals=None,

@@ -71,6 +71,23 @@ def _fit_args(args: argparse.Namespace) -> argparse.Namespace:
         no_reformulation=False, naive_classifier=False, no_pe=False, no_distortion=False, atlasnet=False)
 
 
+def for_unwrap(cfg):
+    """``cfg`` as the unwrap fits it: without L_surf. The unwrap's segmentation is the charts'
+    domains, and L_surf (which lays each chart's whole square on the surface) makes them
+    overlap more, so they cut the mesh more: three 1,000-step refits with it gave the torus
+    seam 3.77 -> 4.46, the sphere 2.41 -> 2.60, genus2 5.38 -> 6.80 and 4 -> 7 islands
+    (benchmarks/RESULTS.md, fit_quality_hard)."""
+    cfg.loss.w_surface = 0.0
+    return cfg
+
+
+def fit_config(args: argparse.Namespace):
+    """The config of the fit this unwrap runs: ``mna fit``'s for :func:`_fit_args`, :func:`for_unwrap`."""
+    from mna.commands.fit import build_config
+
+    return for_unwrap(build_config(_fit_args(args)))
+
+
 def run_unwrap(args: argparse.Namespace) -> int:
     from mnacore.charts import load_charts
     from texture.unwrap_run import check_options, load_unwrap_input, unwrap_to_folder
@@ -95,10 +112,9 @@ def run_unwrap(args: argparse.Namespace) -> int:
         run = args.run
         fit_info = {"fit": "reused", "fit_run": str(Path(args.run).resolve())}
     else:
-        from mna.commands.fit import build_config
         from mna.run import fit_run
 
-        cfg = build_config(_fit_args(args))
+        cfg = fit_config(args)
         result = fit_run(args.mesh, args.out, cfg, progress_bar=not args.no_progress, overwrite=args.overwrite)
         if result.interrupted:
             return 130

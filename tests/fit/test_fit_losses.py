@@ -215,3 +215,49 @@ def test_face_normals_of_a_scrambled_winding_face_the_way_of_their_neighbours():
     centre = np.asarray(sphere.vertices)[sphere.faces].mean(1)
     assert ((want * centre).sum(1) > 0).all()  # outward, as the sphere is wound
     assert flip.sum() > 100
+
+
+def test_objective_surface_term():
+    """L_surf = mean over the first ``surface_samples`` samples of every chart (domain or not) of
+    the squared distance to the nearest target (brute force), per shape, averaged over the batch;
+    w_surface * L_surf enters the total; its gradient reaches chart points that are no positive."""
+    from mna import config as C
+    from mna.model import NeuralAtlas
+    from mna.objective import atlas_losses
+
+    torch.manual_seed(0)
+    cfg = C.tiny()
+    cfg.model.latent = 4
+    cfg.surface_samples = 30
+    cfg.loss.w_surface = 0.25
+    model = NeuralAtlas.from_config(cfg.model, cfg.ablation).double()
+    K, B, N, T = 3, 2, 50, 40
+    uv = torch.rand(K, B, N, 2, dtype=torch.float64) * 2 - 1
+    # targets on a sphere of radius 3 around (5, 0, 0): every distance is far from 1, so a
+    # squared-vs-plain or per-chart-vs-pooled slip shows
+    targets = torch.nn.functional.normalize(torch.randn(B, T, 3, dtype=torch.float64), dim=-1) * 3
+    targets = targets + torch.tensor([5.0, 0.0, 0.0], dtype=torch.float64)
+    z = torch.randn(B, 4, dtype=torch.float64)
+    t = atlas_losses(model, uv, targets, cfg, z)
+    with torch.no_grad():
+        x = model.chart(uv[:, :, :30], z).x
+    brute = np.mean([torch.cdist(x[:, b].reshape(-1, 3), targets[b]).min(1).values.pow(2).mean().item()
+                     for b in range(B)])
+    assert brute > 4.0  # the charts start near the origin, the nearest targets about 2 away
+    assert _f(t.surface) == pytest.approx(brute, rel=1e-10)
+    w = cfg.loss
+    assert _f(t.total) == pytest.approx(_f(w.w_rec * t.rec + w.w_occ * t.occ + w.w_dist * t.dist
+                                                 + w.w_orient * t.orient + w.w_surface * t.surface), rel=1e-12)
+    # with a single target, only one sample per shape is a positive: L_rec's gradient reaches
+    # the chart's output bias of one chart at most; L_surf's reaches all three
+    one = targets[:, :1]
+    cfg.loss.w_rec = cfg.loss.w_occ = cfg.loss.w_dist = 0.0
+    for weight, moved in ((0.0, 0), (1.0, K)):
+        cfg.loss.w_surface = weight
+        cfg.loss.w_rec = 1.0 - weight
+        model.zero_grad()
+        atlas_losses(model, uv[:, :1], one[:1], cfg, z[:1]).total.backward()
+        grads = model.chart.out.b.grad.abs().sum(1)
+        assert int((grads > 0).sum()) == (1 if weight == 0 else moved)
+    cfg.loss.w_surface = 0.0
+    assert _f(atlas_losses(model, uv, targets, cfg, z).surface) == 0.0

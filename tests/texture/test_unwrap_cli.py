@@ -136,22 +136,24 @@ def test_unwrap_fits_when_no_run_is_given(tmp_path):
 def test_unwrap_fits_fewer_steps_than_a_reconstruction_unless_given_a_budget():
     """Without ``--steps`` or ``--time-budget`` the unwrap's fit runs ``UNWRAP_FIT_STEPS``
     steps (fewer than the ``fast`` preset's own), or the preset's own where those are fewer
-    (``tiny``); a given budget is kept as given."""
+    (``tiny``); a given budget is kept as given. It leaves out L_surf, which the ``fast``
+    preset's own fit has."""
     import argparse
 
-    from mna.commands.fit import build_config
-    from mna.commands.unwrap import UNWRAP_FIT_STEPS, _fit_args, register
+    from mna.commands.unwrap import UNWRAP_FIT_STEPS, fit_config, register
     from mna.config import preset
 
     parser = argparse.ArgumentParser()
     register(parser.add_subparsers())
 
     def config(*extra):
-        return build_config(_fit_args(parser.parse_args(["unwrap", "m.ply", "-o", "out", *extra])))
+        return fit_config(parser.parse_args(["unwrap", "m.ply", "-o", "out", *extra]))
 
     assert UNWRAP_FIT_STEPS < preset("fast").steps
     fast = config()
     assert (fast.preset, fast.steps, fast.time_budget) == ("fast", UNWRAP_FIT_STEPS, None)
+    assert fast.loss.w_surface == 0.0 < preset("fast").loss.w_surface
+    assert fast.loss.w_orient == preset("fast").loss.w_orient > 0  # the rest of the preset is kept
     assert config("--preset", "tiny").steps == preset("tiny").steps < UNWRAP_FIT_STEPS
     assert config("--steps", "4321").steps == 4321
     timed = config("--time-budget", "90")
