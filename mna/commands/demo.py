@@ -18,7 +18,7 @@ from mnacore.errors import MnaError
 #: (7-9 steps/s), but 330 steps beside another job (F 58, a torn torus). 1,200 steps is the
 #: middle of that range; measured on the demo torus (3 charts, seed 0, grid 128): 1,200 steps
 #: gave fscore_mesh 94.4 and distortion_metric 0.25, a 150 s budget on the same machine
-#: 1,393 steps, 94.6 and 0.22.
+#: 1,393 steps, 94.6 and 0.22. With L_surf in the preset (docs/fit.md): 1,200 steps, 95.8 and 0.35.
 DEMO_STEPS = 1200
 
 
