@@ -168,20 +168,26 @@ def test_orientation_loss_gradcheck():
     assert torch.autograd.gradcheck(lambda j: losses.orientation_loss(j, normals, groups), (jac,))
 
 
-def test_objective_orientation_term():
-    """w_orient * L_orient enters the total; it is per-shape averaged like the other terms; no normals -> 0."""
+def _latent_atlas():
+    """A ``tiny`` atlas in float64 with a 4-wide latent, and UV samples ``(3, 2, 50, 2)``."""
     from mna import config as C
     from mna.model import NeuralAtlas
-    from mna.objective import atlas_losses
 
     torch.manual_seed(0)
     cfg = C.tiny()
     cfg.model.latent = 4
+    model = NeuralAtlas.from_config(cfg.model, cfg.ablation).double()
+    return cfg, model, torch.rand(3, 2, 50, 2, dtype=torch.float64) * 2 - 1
+
+
+def test_objective_orientation_term():
+    """w_orient * L_orient enters the total; it is per-shape averaged like the other terms; no normals -> 0."""
+    from mna.objective import atlas_losses
+
+    cfg, model, uv = _latent_atlas()
     cfg.dist_samples = 8
     cfg.loss.w_orient = 0.5
-    model = NeuralAtlas.from_config(cfg.model, cfg.ablation).double()
-    K, B, N, T = 3, 2, 50, 40
-    uv = torch.rand(K, B, N, 2, dtype=torch.float64) * 2 - 1
+    B, T = 2, 40
     targets = torch.randn(B, T, 3, dtype=torch.float64) * 0.5
     normals = torch.nn.functional.normalize(torch.randn(B, T, 3, dtype=torch.float64), dim=-1)
     z = torch.randn(B, 4, dtype=torch.float64)
@@ -221,18 +227,12 @@ def test_objective_surface_term():
     """L_surf = mean over the first ``surface_samples`` samples of every chart (domain or not) of
     the squared distance to the nearest target (brute force), per shape, averaged over the batch;
     w_surface * L_surf enters the total; its gradient reaches chart points that are no positive."""
-    from mna import config as C
-    from mna.model import NeuralAtlas
     from mna.objective import atlas_losses
 
-    torch.manual_seed(0)
-    cfg = C.tiny()
-    cfg.model.latent = 4
+    cfg, model, uv = _latent_atlas()
     cfg.surface_samples = 30
     cfg.loss.w_surface = 0.25
-    model = NeuralAtlas.from_config(cfg.model, cfg.ablation).double()
-    K, B, N, T = 3, 2, 50, 40
-    uv = torch.rand(K, B, N, 2, dtype=torch.float64) * 2 - 1
+    K, B, T = 3, 2, 40
     # targets on a sphere of radius 3 around (5, 0, 0): every distance is far from 1, so a
     # squared-vs-plain or per-chart-vs-pooled slip shows
     targets = torch.nn.functional.normalize(torch.randn(B, T, 3, dtype=torch.float64), dim=-1) * 3
