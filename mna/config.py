@@ -55,7 +55,9 @@ class LossConfig:
     """Weight of L_surf (an mna extension, not in the paper): the mean squared distance of
     chart samples, in the domain or not, to their nearest target (over ``surface_samples``
     UV samples per chart). It keeps the whole square of every chart on the surface, so the
-    part of a chart outside its domain lies where targets are and can take them; 0 = off."""
+    part of a chart outside its domain lies where targets are and can take them; 0 = off.
+    A fit leaves it out from its lr decay on (``lr_decay_start``): it places the charts while
+    the lr is high, and the decay refines them without it."""
 
 
 @dataclass
@@ -147,9 +149,6 @@ class FitConfig(AtlasSettings):
     ``max_charts``; ``model.charts`` is saved as grown."""
     max_charts: int = 6
     """Cap of the ``grow`` rule."""
-    surface_until: float = 1.0
-    """Fraction of the fit after which L_surf (``loss.w_surface``) is left out: it places the
-    charts while the lr is high; from the decay on the fit refines them without it."""
     hard_targets: int = 0
     """Extra targets per step drawn where the fit errs most (:mod:`mna.hard_targets`); they
     pull on the charts but do not label occupancy. 0 = off (the paper)."""
@@ -187,7 +186,6 @@ class FitConfig(AtlasSettings):
         check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
         check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
-        check_float(self.surface_until, "surface_until", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
         if not isinstance(self.preset, str):
             raise MnaError(f"preset must be a string, got {self.preset!r}")
@@ -286,7 +284,6 @@ def fast() -> FitConfig:
         # the domains lie where uncovered surface can take them (walls of holes, parts)
         loss=LossConfig(w_dist=1e-4, w_orient=1e-3, w_surface=0.1),
         surface_samples=1000,
-        surface_until=0.55,
         lr=1e-3,
         lr_decay_start=0.55,
         lr_final=0.02,

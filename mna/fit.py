@@ -98,7 +98,7 @@ class Fitter:
         targets = torch.from_numpy(pts).float().to(dev)
         normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
         terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets,
-                             surface=self.progress() < cfg.surface_until)
+                             surface=self.progress() < cfg.lr_decay_start)
         if self.errors is not None:
             self.errors.record(elements, terms.distance[0].cpu().numpy())
         total = terms.total

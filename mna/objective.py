@@ -48,7 +48,7 @@ def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cf
     without normals the term is 0). ``labelled``: only the first ``labelled`` targets of each
     shape label PU positives (the uniform draw; the rest are hard examples that only pull,
     :mod:`mna.hard_targets`); None = all. ``surface``: False leaves L_surf out this step (a fit's
-    schedule, ``FitConfig.surface_until``).
+    schedule: a fit's lr decay).
     """
     orient = torch.zeros((), device=uv.device)
     want_surface = surface and cfg.loss.w_surface > 0

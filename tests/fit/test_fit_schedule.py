@@ -61,13 +61,13 @@ def test_late_uv_samples_must_be_a_count():
         cfg.validate()
 
 
-def test_surface_term_ends_at_surface_until(monkeypatch):
-    """A 10-step fit with ``surface_until`` 0.3 adds w_surface * L_surf (> 0) to steps 1-3 and
+def test_surface_term_ends_where_the_lr_decays(monkeypatch):
+    """A 10-step fit decaying from 0.3 adds w_surface * L_surf (> 0) to steps 1-3 and
     leaves it out from step 4 (progress 0.3) on; the total is the other terms' sum there."""
     s = trimesh.creation.icosphere(subdivisions=3, radius=2.5)
     surface = make_surface(s.vertices, s.faces)
     cfg = C.tiny()
-    cfg.steps, cfg.surface_until, cfg.loss.w_surface, cfg.surface_samples = 10, 0.3, 0.5, 200
+    cfg.steps, cfg.lr_decay_start, cfg.loss.w_surface, cfg.surface_samples = 10, 0.3, 0.5, 200
     seen = []
     real = F.atlas_losses
 
@@ -84,6 +84,3 @@ def test_surface_term_ends_at_surface_until(monkeypatch):
         fitter.train_step()
     assert all(l_surf > 1e-4 and extra == pytest.approx(0.5 * l_surf, rel=1e-5) for l_surf, extra in seen[:3])
     assert all(l_surf == 0.0 and extra == 0.0 for l_surf, extra in seen[3:])
-    cfg.surface_until = 1.5
-    with pytest.raises(MnaError, match="surface_until"):
-        cfg.validate()
