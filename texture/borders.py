@@ -36,9 +36,11 @@ def border_length(label: np.ndarray, adj: FaceAdjacency) -> float:
     return float(adj.length[label[adj.a] != label[adj.b]].sum())
 
 
-def _swap(label: np.ndarray, reach: np.ndarray, adj: FaceAdjacency, a: int, b: int) -> np.ndarray:
-    """``label`` with the faces of charts ``a``/``b`` that both reach relabelled by a minimum cut."""
-    free = ((label == a) | (label == b)) & reach[:, a] & reach[:, b]
+def min_cut_labels(label: np.ndarray, free: np.ndarray, adj: FaceAdjacency, a: int, b: int) -> np.ndarray:
+    """``label`` with the ``free`` faces relabelled ``a`` or ``b`` by a minimum cut of the face
+    graph (capacities: the shared edges' 3D lengths), every other face held to its label: the
+    shortest ``a``/``b`` border that runs through the free faces only. A free face next to a
+    held face of another label than ``a`` or ``b`` is not tied to either side."""
     idx = np.flatnonzero(free)
     if len(idx) == 0:
         return label
@@ -70,6 +72,11 @@ def _swap(label: np.ndarray, reach: np.ndarray, adj: FaceAdjacency, a: int, b: i
     out = label.copy()
     out[idx] = np.where(side[:n], a, b)
     return out
+
+
+def _swap(label: np.ndarray, reach: np.ndarray, adj: FaceAdjacency, a: int, b: int) -> np.ndarray:
+    """``label`` with the faces of charts ``a``/``b`` that both reach relabelled by a minimum cut."""
+    return min_cut_labels(label, ((label == a) | (label == b)) & reach[:, a] & reach[:, b], adj, a, b)
 
 
 def shortest_borders(label: np.ndarray, reach: np.ndarray, adj: FaceAdjacency) -> tuple[np.ndarray, dict]:

@@ -1,0 +1,82 @@
+"""Halving an island: the cut is the shortest anywhere between the positions tried."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mnacore.triangles import signed_areas, triangle_areas
+from texture.halving import LONG_CUTS, halve_across
+from texture.unwrap_islands import Island
+
+#: grid step of the planar strip below, and its neck: columns [NECK_X0, NECK_X1), rows [NECK_Y0, NECK_Y1)
+H = 0.05
+NECK_X0, NECK_X1, NECK_Y0, NECK_Y1 = 1.70, 1.85, 0.40, 0.65
+#: the strip's 3D coordinates and UVs are its plane's times this (an unwrap's islands are at
+#: the 3D scale: ``ZIGZAG`` compares a cut's 3D length with the island's UV width)
+XYZ_SCALE = 3.0
+
+
+def _necked_strip() -> Island:
+    """A 4 x 1 planar strip of grid cells (two triangles each) whose cells over
+    ``[NECK_X0, NECK_X1)`` are kept only between ``NECK_Y0`` and ``NECK_Y1``: a neck 0.25 wide.
+    Its area before the neck is 1.70 of 3.8875 (0.437), after it 2.15: between the
+    straight cuts at 0.40 and 0.45 of the area."""
+    nx, ny = round(4 / H), round(1 / H)
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    x0, y0 = i.ravel() * H, j.ravel() * H
+    in_neck_cols = (x0 >= NECK_X0 - 1e-9) & (x0 < NECK_X1 - 1e-9)
+    in_neck_rows = (y0 >= NECK_Y0 - 1e-9) & (y0 < NECK_Y1 - 1e-9)
+    keep = ~in_neck_cols | in_neck_rows
+    v = (i.ravel() * (ny + 1) + j.ravel())[keep]
+    faces = np.concatenate([np.column_stack([v, v + ny + 1, v + ny + 2]),
+                            np.column_stack([v, v + ny + 2, v + 1])])
+    gi, gj = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="ij")
+    plane = np.column_stack([gi.ravel() * H, gj.ravel() * H])
+    used, inv = np.unique(faces, return_inverse=True)
+    plane = plane[used]
+    xyz = np.column_stack([plane * XYZ_SCALE, np.zeros(len(plane))])
+    faces = inv.reshape(-1, 3)
+    return Island(faces, plane * XYZ_SCALE, xyz, np.arange(len(faces)), np.arange(len(plane)), 0)
+
+
+def test_a_halving_cuts_through_a_neck_that_no_straight_cut_meets():
+    """The cut positions tried (0.30-0.70 of the area) step over the neck (0.437-0.447 of the
+    area): every straight cut crosses the strip's full width, 3.0 in 3D. The shortest cut between
+    the first and last position is across the neck: 0.25 x 3 = 0.75, with the neck's area on
+    either side of it, and the halves keep their UVs."""
+    strip = _necked_strip()
+    total = triangle_areas(strip.xyz, strip.faces).sum()
+    assert total == pytest.approx((4 - (NECK_X1 - NECK_X0) * (1 - (NECK_Y1 - NECK_Y0))) * XYZ_SCALE**2)
+    straight = [halve_across(strip, cuts=[q]) for q in LONG_CUTS]  # one position: a straight cut
+    straight = [got[1] for got in straight if got is not None]
+    assert straight and min(straight) >= XYZ_SCALE * (1 - 1e-9)  # the full width, or a staircase
+    halves, cut = halve_across(strip)
+    assert cut == pytest.approx((NECK_Y1 - NECK_Y0) * XYZ_SCALE, rel=1e-9)
+    smaller = min(triangle_areas(h.xyz, h.faces).sum() for h in halves) / XYZ_SCALE**2  # either end first
+    assert NECK_X0 - 1e-9 <= smaller <= NECK_X0 + (NECK_X1 - NECK_X0) * (NECK_Y1 - NECK_Y0) + 1e-9
+    assert sum(len(h.faces) for h in halves) == len(strip.faces)
+    for h in halves:  # each half's corners keep the island's UVs
+        assert np.allclose(h.uv, strip.uv[h.work_vertex])
+
+
+def test_the_shortest_cut_is_no_longer_than_any_straight_one_on_a_curved_island():
+    """On a curved island (a quarter of a sphere's surface, 3D lengths on radius 2.5) the
+    cut between the positions is at most the shortest straight cut among them, and both
+    halves are one piece that together hold every face."""
+    import trimesh
+
+    from texture.flatten import start_map
+
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=2.5)
+    c = sphere.triangles_center
+    sel = np.flatnonzero((c[:, 0] > 0) & (c[:, 1] > 0))
+    used, inv = np.unique(sphere.faces[sel], return_inverse=True)
+    faces, xyz = inv.reshape(-1, 3), sphere.vertices[used]
+    uv = start_map(xyz, faces)
+    uv *= np.sqrt(triangle_areas(xyz, faces).sum() / np.abs(signed_areas(uv, faces)).sum())  # the 3D scale
+    isl = Island(faces, uv, xyz, np.arange(len(faces)), np.arange(len(xyz)), 0)
+    straight = [halve_across(isl, cuts=[q]) for q in LONG_CUTS]
+    straight = min(got[1] for got in straight if got is not None)
+    halves, cut = halve_across(isl)
+    assert cut <= straight * (1 + 1e-9)
+    assert sorted(np.concatenate([h.work_faces for h in halves]).tolist()) == list(range(len(faces)))
