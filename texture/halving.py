@@ -152,25 +152,44 @@ ZIGZAG = 2.0
 LONG_CUTS = np.linspace(0.3, 0.7, 9)
 
 
+def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float,
+              width: float) -> tuple[float, np.ndarray] | None:
+    """(3D length, faces before it) of the shortest cut between the positions ``lo_q`` and
+    ``hi_q`` (``pos``: each face's area fraction along the axis): a minimum cut of the faces
+    between them (:func:`texture.borders.min_cut_labels`), those before held to the first
+    half and those after to the second, its ears then moved; None where a half is not one
+    piece or the cut zigzags (:data:`ZIGZAG`)."""
+    from .borders import min_cut_labels
+
+    label = (pos > lo_q).astype(np.int64)  # held: 0 before the first position, 1 after the last
+    lo = min_cut_labels(label, (pos > lo_q) & (pos <= hi_q), adj, 0, 1) == 0
+    if not lo.any() or lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
+        return None
+    lo, _ = smooth_cut(isl, lo)
+    cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
+    return (cut, lo) if cut <= ZIGZAG * width else None
+
+
 def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
                  centre: float = 0.5, tie: float = 0.0, band: bool = True) -> tuple[list[Island], float] | None:
     """(the island cut in two, the cut's 3D length), or None where no cut works.
 
     The cut runs across the island's principal UV axis (``along``: along it, i.e. across the
-    minor axis), along mesh edges, and is the shortest of two kinds whose two halves are
-    each one piece (the first half is the one before the cut):
+    minor axis), along mesh edges, whose two halves are each one piece (the first half is the
+    one before the cut):
 
-    - straight: at one of the positions ``cuts`` (fractions of the island's 3D area before
-      the cut along the axis; ties, lengths within ``tie`` of each other relatively: the one
-      nearest ``centre``, by default the more even halves);
-    - ``band``: the shortest cut anywhere between the first and the last position, a minimum
+    - ``band``: the shortest cut anywhere between the first and the last of the positions
+      ``cuts`` (fractions of the island's 3D area before the cut along the axis), a minimum
       cut (:func:`texture.borders.min_cut_labels`) of the faces between them, the faces
       before the first held to one half and those after the last to the other. A straight
       cut follows a line of the flattened map, which is not a short line on the surface (a
       cap's map bends its geodesics), and it steps over a neck that lies between two
-      positions; the minimum cut is never longer than any straight cut between them (the
-      packing's halvings: the sphere's 2.05 -> 1.71, bob's 1.80 -> 1.10). Not for cuts meant
-      to leave pieces of one length that stack (:mod:`texture.long_islands`).
+      positions; before ears move, the minimum cut is never longer than any straight cut
+      between them (the packing's halvings: the sphere's 2.05 -> 1.71, bob's 1.80 -> 1.10).
+      Not for cuts meant to leave pieces of one length that stack (:mod:`texture.long_islands`);
+    - straight, where there is no band cut (one position, ``band=False``, or halves not one
+      piece): the shortest of the cuts at the positions ``cuts`` (ties, lengths within ``tie``
+      of each other relatively: the one nearest ``centre``, by default the more even halves).
 
     The halves keep their UVs: parts of a flip-free, overlap-free island stay so, and the
     input's faces are not changed (an unwrap may only cut along edges). ``adj``: the
@@ -184,8 +203,19 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
     order = np.argsort(s, kind="stable")
     cum = np.cumsum(area[order]) / area.sum()
     adj = face_adjacency(isl.xyz, isl.faces) if adj is None else adj
+    pos = np.empty(len(area))
+    pos[order] = cum  # each face's fraction of the area up to and including it
+    lo_q, hi_q = float(np.min(cuts)), float(np.max(cuts))
+    shortest = _band_cut(isl, adj, pos, lo_q, hi_q, width) if band and hi_q > lo_q else None
+    # straight cuts: all where no band cut was made (of equal cuts, the one nearest the
+    # centre), else only the one nearest the centre, kept where the band cut is no shorter
+    # (a flat strip's cuts across are all equal, and the minimum cut is the one nearest the
+    # first position: the straight one leaves even halves). No straight cut between the
+    # positions is shorter than the band cut before ears move, and each costs its ears'
+    # moves and two connectivity tests (at 1M faces, seconds), so the others are not tried.
+    straight = sorted(cuts, key=lambda q: abs(q - centre))
     best = None
-    for q in sorted(cuts, key=lambda q: abs(q - centre)):  # equal cuts: the one nearest the centre
+    for q in straight if shortest is None else straight[:1]:
         lo = np.zeros(len(isl.faces), bool)
         lo[order[:int(np.searchsorted(cum, q)) + 1]] = True
         if lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
@@ -198,22 +228,8 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
             continue
         if best is None or cut < best[0] * (1.0 - tie):  # a tie keeps the nearer
             best = (cut, lo)
-    lo_q, hi_q = float(np.min(cuts)), float(np.max(cuts))
-    if band and hi_q > lo_q:
-        # the shortest cut anywhere between the first and last position, not only straight
-        # across: a minimum cut of the faces between them (texture.borders.min_cut_labels)
-        from .borders import min_cut_labels
-
-        pos = np.empty(len(area))
-        pos[order] = cum
-        label = (pos > lo_q).astype(np.int64)  # held: 0 before the first position, 1 after the last
-        free = (pos > lo_q) & (pos <= hi_q)
-        lo = min_cut_labels(label, free, adj, 0, 1) == 0
-        if lo.any() and not lo.all() and _one_piece(adj, lo) and _one_piece(adj, ~lo):
-            lo, _ = smooth_cut(isl, lo)
-            cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
-            if cut <= ZIGZAG * width and (best is None or cut < best[0] * (1.0 - tie)):
-                best = (cut, lo)
+    if shortest is not None and (best is None or best[0] > shortest[0] * (1.0 + 1e-9)):
+        best = shortest
     if best is None:
         return None
     return [_sub_island(isl, np.flatnonzero(best[1])), _sub_island(isl, np.flatnonzero(~best[1]))], best[0]

@@ -137,11 +137,11 @@ def _comb(teeth: int = 4, height: int = 8, cell: float = 0.25) -> Island:
 
 
 def test_halvings_go_on_while_each_pays_until_the_target():
-    """A comb of five short teeth (with a small island of its part) needs three halvings, each
+    """A comb of four long teeth (with a small island of its part) needs three halvings, each
     gaining more than ``pack_cut_gain``, to pack 0.6: at most two leave it below the target;
-    by default it gets the third and reaches it. (Four longer teeth needed three while the
+    by default it gets the third and reaches it. (Teeth 8 cells long needed three while the
     cuts were straight; the shortest cuts, between the teeth, get there in two.)"""
-    comb = _comb(teeth=5, height=6)
+    comb = _comb(teeth=4, height=10)
     _, small = _pair()
     small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
                    np.arange(len(small.uv)) + len(comb.uv), 1)
@@ -246,14 +246,19 @@ def test_many_islands_still_find_the_turn_that_nests_two_large_ones():
     assert verify_packing(got.packing.uv, faces, island, 256)[0] == 0
 
 
-def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned():
-    """A comb with a speck of its part: two halvings pay as xatlas turns the islands, the third
-    does not (it gains under 0.02 there), and the quarter-turned four islands stay below 0.6.
-    Quarter-turned, the third halving gains more than ``pack_cut_gain`` over them and is kept:
-    five islands reach the target. Where the gain it must buy is higher (0.15), the search
-    stops after the first halving and nothing that falls short is kept. (Five short teeth: on
-    four longer ones the shortest cuts, between the teeth, reach the target in two halvings.)"""
-    comb = _comb(teeth=5, height=6)
+def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned(monkeypatch):
+    """A comb with a speck of its part, halved by straight cuts: two halvings pay as xatlas
+    turns the islands, the third does not (it gains under 0.02 there), and the quarter-turned
+    four islands stay below 0.6. Quarter-turned, the third halving gains more than
+    ``pack_cut_gain`` over them and is kept: five islands reach the target. Where the gain it
+    must buy is higher (0.08), the search stops after the first halving and nothing that falls
+    short is kept. (The rule under test is the search's; the shortest cuts, between the
+    teeth, pay at once on this comb and on every comb of 3-6 teeth 5-12 cells long tried.)"""
+    import texture.unwrap_layout as layout
+    from texture.halving import halve_across
+
+    monkeypatch.setattr(layout, "halve_across", lambda *a, **k: halve_across(*a, **k, band=False))
+    comb = _comb()
     speck = _grid_island(1, 1, 0.02)
     speck = Island(speck.faces, speck.uv, speck.xyz + [5.0, 0.0, 0.0], np.arange(len(speck.faces)) + len(comb.faces),
                    np.arange(len(speck.uv)) + len(comb.uv), 1)
@@ -267,7 +272,7 @@ def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned():
     uv, faces, island = island_arrays(got.islands)
     assert (signed_areas(got.packing.uv, faces) > 0).all()
     assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
-    strict = choose_layout([comb, speck], comp, UnwrapConfig(resolution=512, padding=4, pack_cut_gain=0.15))
+    strict = choose_layout([comb, speck], comp, UnwrapConfig(resolution=512, padding=4, pack_cut_gain=0.08))
     assert len(strict.islands) == 3 and not any(h.get("after_quarter_turns") for h in strict.stats["halvings"])
     assert strict.packing.utilization < 0.6
 
