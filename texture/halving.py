@@ -156,7 +156,7 @@ LONG_CUTS = np.linspace(0.3, 0.7, 9)
 #: above): scipy's maximum flow grows faster than the faces, and the packing search makes up
 #: to 18 halvings a round. The benchmark fits and the 111k-face bunny give the same cuts with
 #: it as with whole bands; on the 1M-face bunny whole bands took its packing from 40 s (straight
-#: cuts) to 160 s, narrowed ones to 32 s.
+#: cuts) to 155-161 s (two runs), narrowed ones to 32 s.
 BAND_MAX_FACES = 20_000
 
 
