@@ -36,11 +36,14 @@ def border_length(label: np.ndarray, adj: FaceAdjacency) -> float:
     return float(adj.length[label[adj.a] != label[adj.b]].sum())
 
 
-def min_cut_labels(label: np.ndarray, free: np.ndarray, adj: FaceAdjacency, a: int, b: int) -> np.ndarray:
+def min_cut_labels(label: np.ndarray, free: np.ndarray, adj: FaceAdjacency, a: int, b: int,
+                   weight: np.ndarray | None = None) -> np.ndarray:
     """``label`` with the ``free`` faces relabelled ``a`` or ``b`` by a minimum cut of the face
-    graph (capacities: the shared edges' 3D lengths), every other face held to its label: the
-    shortest ``a``/``b`` border that runs through the free faces only. A free face next to a
-    held face of another label than ``a`` or ``b`` is not tied to either side."""
+    graph (capacities: the shared edges' 3D lengths, times ``weight`` per face pair where
+    given), every other face held to its label: the shortest ``a``/``b`` border that runs
+    through the free faces only. A free face next to a held face of another label than ``a``
+    or ``b`` is not tied to either side."""
+    length_of = adj.length if weight is None else adj.length * weight
     idx = np.flatnonzero(free)
     if len(idx) == 0:
         return label
@@ -50,7 +53,7 @@ def min_cut_labels(label: np.ndarray, free: np.ndarray, adj: FaceAdjacency, a: i
     src, snk = n, n + 1
     la, lb = loc[adj.a], loc[adj.b]
     both = (la >= 0) & (lb >= 0)
-    rows, cols, caps = [la[both], lb[both]], [lb[both], la[both]], [adj.length[both], adj.length[both]]
+    rows, cols, caps = [la[both], lb[both]], [lb[both], la[both]], [length_of[both], length_of[both]]
     # a free face next to a held face: cutting that edge costs its length, on the side it holds
     for inner, outer in ((la, adj.b), (lb, adj.a)):
         edge = (inner >= 0) & (loc[outer] < 0)
@@ -58,7 +61,7 @@ def min_cut_labels(label: np.ndarray, free: np.ndarray, adj: FaceAdjacency, a: i
             m = edge & (label[outer] == lab)
             rows.append(np.full(int(m.sum()), src) if side == src else inner[m])
             cols.append(inner[m] if side == src else np.full(int(m.sum()), snk))
-            caps.append(adj.length[m])
+            caps.append(length_of[m])
     length = np.concatenate(caps)
     scale = CAPACITY_TOTAL / max(float(length.sum()), 1e-300)
     cap = np.maximum(np.floor(length * scale), 1).astype(np.int32)

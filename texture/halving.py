@@ -158,10 +158,13 @@ LONG_CUTS = np.linspace(0.3, 0.7, 9)
 #: it as with whole bands; on the 1M-face bunny whole bands took its packing from 40 s (straight
 #: cuts) to 155-161 s (two runs), narrowed ones to 32 s.
 BAND_MAX_FACES = 20_000
+#: a band cut's edges weigh ``1 + CENTRE_BIAS * d`` times their length, ``d`` their distance
+#: (area fraction) from the centre: a tie-break (a cut at most 0.1 % longer may win), not a preference
+CENTRE_BIAS = 1e-3
 
 
-def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float,
-              width: float) -> tuple[float, np.ndarray] | None:
+def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float, width: float,
+              centre: float) -> tuple[float, np.ndarray] | None:
     """(3D length, faces before it) of the shortest cut between the positions ``lo_q`` and
     ``hi_q`` (``pos``: each face's area fraction along the axis): a minimum cut of the faces
     between them (:func:`texture.borders.min_cut_labels`), those before held to the first
@@ -176,7 +179,10 @@ def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float,
         lo_q, hi_q = mid - half, mid + half
         free = (pos > lo_q) & (pos <= hi_q)
     label = (pos > lo_q).astype(np.int64)  # held: 0 before the first position, 1 after the last
-    lo = min_cut_labels(label, free, adj, 0, 1) == 0
+    # of cuts of equal length, the one nearest ``centre`` (a flat strip's cuts across are all
+    # equal, and the bare minimum cut is the one nearest the first position: uneven halves)
+    weight = 1.0 + CENTRE_BIAS * np.abs(0.5 * (pos[adj.a] + pos[adj.b]) - centre)
+    lo = min_cut_labels(label, free, adj, 0, 1, weight) == 0
     if not lo.any() or lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
         return None
     lo, _ = smooth_cut(isl, lo)
@@ -220,11 +226,10 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
     pos = np.empty(len(area))
     pos[order] = cum  # each face's fraction of the area up to and including it
     lo_q, hi_q = float(np.min(cuts)), float(np.max(cuts))
-    shortest = _band_cut(isl, adj, pos, lo_q, hi_q, width) if band and hi_q > lo_q else None
+    shortest = _band_cut(isl, adj, pos, lo_q, hi_q, width, centre) if band and hi_q > lo_q else None
     # straight cuts: all where no band cut was made (of equal cuts, the one nearest the
     # centre), else only the one nearest the centre, kept where the band cut is no shorter
-    # (a flat strip's cuts across are all equal, and the minimum cut is the one nearest the
-    # first position: the straight one leaves even halves). No straight cut between the
+    # (it leaves the most even halves). No straight cut between the
     # positions is shorter than the band cut before ears move, and each costs its ears'
     # moves and two connectivity tests (at 1M faces, seconds), so the others are not tried.
     straight = sorted(cuts, key=lambda q: abs(q - centre))
