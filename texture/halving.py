@@ -153,10 +153,11 @@ LONG_CUTS = np.linspace(0.3, 0.7, 9)
 
 
 #: the most faces a band cut's minimum cut runs over (its band is narrowed about its middle
-#: above): scipy's maximum flow grows faster than the faces, and the packing search makes up
-#: to 18 halvings a round. The benchmark fits and the 111k-face bunny give the same cuts with
-#: it as with whole bands; on the 1M-face bunny whole bands took its packing from 40 s (straight
-#: cuts) to 155-161 s (two runs), narrowed ones to 32 s.
+#: above), for time: scipy's maximum flow grows faster than the faces it runs over (about
+#: 0.1 s at 20,000 here), and the packing search makes up to 18 halvings a round. A band is
+#: 15-40 % of its island, so only islands above 50,000 faces are narrowed, and there the
+#: band still reaches 20,000 / sqrt(F) faces deep across an island about sqrt(F) faces wide
+#: (30 at 400,000): room for the cut to run straight on the surface, not for a neck far off.
 BAND_MAX_FACES = 20_000
 #: a band cut's edges weigh ``1 + CENTRE_BIAS * d`` times their length, ``d`` their distance
 #: (area fraction) from the centre: a tie-break (a cut at most 0.1 % longer may win), not a preference
