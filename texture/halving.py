@@ -124,21 +124,37 @@ def _sub_island(isl: Island, sel: np.ndarray) -> Island:
     return Island(inv.reshape(-1, 3), isl.uv[vid], isl.xyz[vid], isl.work_faces[sel], isl.work_vertex[vid], isl.label)
 
 
-def _one_piece(adj, mask: np.ndarray) -> bool:
-    """Whether the faces ``mask`` of a manifold island are one piece through shared edges
-    (hence through shared vertices too), from the island's face adjacency ``adj``
-    (:func:`texture.regions.face_adjacency`): an edge of a manifold mesh joins at most two
-    faces, so the pairs within the subset are the subset's own adjacency."""
+def _pieces(adj, mask: np.ndarray) -> tuple[int, np.ndarray]:
+    """(how many pieces, the piece of each face of ``mask`` in order) of the faces ``mask`` of
+    a manifold island through shared edges (hence through shared vertices too), from the
+    island's face adjacency ``adj`` (:func:`texture.regions.face_adjacency`): an edge of a
+    manifold mesh joins at most two faces, so the pairs within the subset are the subset's
+    own adjacency."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     n = int(mask.sum())
     if n == 0:
-        return False
+        return 0, np.zeros(0, np.int64)
     index = np.cumsum(mask) - 1
     keep = mask[adj.a] & mask[adj.b]
     g = coo_matrix((np.ones(int(keep.sum())), (index[adj.a[keep]], index[adj.b[keep]])), shape=(n, n))
-    return connected_components(g, directed=False)[0] == 1
+    return connected_components(g, directed=False)
+
+
+def _one_piece(adj, mask: np.ndarray) -> bool:
+    """Whether the faces ``mask`` of a manifold island are one piece (:func:`_pieces`)."""
+    return _pieces(adj, mask)[0] == 1
+
+
+def _largest_piece(adj, mask: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """The faces of ``mask``'s largest piece (3D area, :func:`_pieces`)."""
+    n, piece = _pieces(adj, mask)
+    if n <= 1:
+        return mask
+    out = np.zeros_like(mask)
+    out[np.flatnonzero(mask)[piece == np.argmax(np.bincount(piece, weights=area[mask]))]] = True
+    return out
 
 
 #: a halving whose cut (along mesh edges) is longer than this many times the island's width
@@ -165,12 +181,21 @@ CENTRE_BIAS = 1e-3
 
 
 def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float, width: float,
-              centre: float) -> tuple[float, np.ndarray] | None:
+              centre: float, area: np.ndarray) -> tuple[float, np.ndarray] | None:
     """(3D length, faces before it) of the shortest cut between the positions ``lo_q`` and
-    ``hi_q`` (``pos``: each face's area fraction along the axis): a minimum cut of the faces
-    between them (:func:`texture.borders.min_cut_labels`), those before held to the first
-    half and those after to the second, its ears then moved; None where a half is not one
-    piece or the cut zigzags (:data:`ZIGZAG`)."""
+    ``hi_q`` (``pos``: each face's area fraction along the axis, ``area`` its 3D area): a
+    minimum cut of the faces between them (:func:`texture.borders.min_cut_labels`), those
+    before held to the first half and those after to the second, its ears then moved; None
+    where a half is not one piece or the cut zigzags (:data:`ZIGZAG`).
+
+    An island's end need not be one piece: past a position across a U-shaped or forked
+    island lie two lobes, and holding both to one half asks the cut to join what only the
+    band can join (the half then comes out in pieces, and only a straight cut was left).
+    So where the halves come out in pieces and an end is in pieces, only the largest piece
+    of each such end is held, and the cut places the smaller lobes, like the band's faces,
+    wherever it is shortest. (Where holding whole ends leaves whole halves, they stay held:
+    freeing their lobes on every halving offered the packing search cuts that pack better
+    but run longer, and its rounds took them: seams rose on 3 of 19 benchmark fits.)"""
     from .borders import min_cut_labels
 
     free = (pos > lo_q) & (pos <= hi_q)
@@ -184,6 +209,13 @@ def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float, width
     # equal, and the bare minimum cut is the one nearest the first position: uneven halves)
     weight = 1.0 + CENTRE_BIAS * np.abs(0.5 * (pos[adj.a] + pos[adj.b]) - centre)
     lo = min_cut_labels(label, free, adj, 0, 1, weight) == 0
+    if not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
+        ends = [end for end in (pos <= lo_q, pos > hi_q) if not _one_piece(adj, end)]
+        if not ends:
+            return None
+        for end in ends:  # an end's smaller lobes go free
+            free |= end & ~_largest_piece(adj, end, area)
+        lo = min_cut_labels(label, free, adj, 0, 1, weight) == 0
     if not lo.any() or lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
         return None
     lo, _ = smooth_cut(isl, lo)
@@ -227,7 +259,7 @@ def halve_across(isl: Island, along: bool = False, cuts=LONG_CUTS, adj=None,
     pos = np.empty(len(area))
     pos[order] = cum  # each face's fraction of the area up to and including it
     lo_q, hi_q = float(np.min(cuts)), float(np.max(cuts))
-    shortest = _band_cut(isl, adj, pos, lo_q, hi_q, width, centre) if band and hi_q > lo_q else None
+    shortest = _band_cut(isl, adj, pos, lo_q, hi_q, width, centre, area) if band and hi_q > lo_q else None
     # straight cuts: all where no band cut was made (of equal cuts, the one nearest the
     # centre), else only the one nearest the centre, kept where the band cut is no shorter
     # (it leaves the most even halves). No straight cut between the

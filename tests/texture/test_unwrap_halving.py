@@ -16,18 +16,12 @@ NECK_X0, NECK_X1, NECK_Y0, NECK_Y1 = 1.70, 1.85, 0.40, 0.65
 XYZ_SCALE = 3.0
 
 
-def _necked_strip() -> Island:
-    """A 4 x 1 planar strip of grid cells (two triangles each) whose cells over
-    ``[NECK_X0, NECK_X1)`` are kept only between ``NECK_Y0`` and ``NECK_Y1``: a neck 0.25 wide.
-    Its area before the neck is 1.70 of 3.8875 (0.437), after it 2.15: between the
-    straight cuts at 0.40 and 0.45 of the area."""
-    nx, ny = round(4 / H), round(1 / H)
+def _cells(width: float, height: float, keep) -> Island:
+    """A planar island of the grid cells (two triangles each, step ``H``) of a ``width`` x
+    ``height`` rectangle whose lower-left corners (x, y) pass ``keep(x, y)``, at ``XYZ_SCALE``."""
+    nx, ny = round(width / H), round(height / H)
     i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-    x0, y0 = i.ravel() * H, j.ravel() * H
-    in_neck_cols = (x0 >= NECK_X0 - 1e-9) & (x0 < NECK_X1 - 1e-9)
-    in_neck_rows = (y0 >= NECK_Y0 - 1e-9) & (y0 < NECK_Y1 - 1e-9)
-    keep = ~in_neck_cols | in_neck_rows
-    v = (i.ravel() * (ny + 1) + j.ravel())[keep]
+    v = (i.ravel() * (ny + 1) + j.ravel())[keep(i.ravel() * H, j.ravel() * H)]
     faces = np.concatenate([np.column_stack([v, v + ny + 1, v + ny + 2]),
                             np.column_stack([v, v + ny + 2, v + 1])])
     gi, gj = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="ij")
@@ -37,6 +31,17 @@ def _necked_strip() -> Island:
     xyz = np.column_stack([plane * XYZ_SCALE, np.zeros(len(plane))])
     faces = inv.reshape(-1, 3)
     return Island(faces, plane * XYZ_SCALE, xyz, np.arange(len(faces)), np.arange(len(plane)), 0)
+
+
+def _necked_strip() -> Island:
+    """A 4 x 1 planar strip of grid cells whose cells over ``[NECK_X0, NECK_X1)`` are kept
+    only between ``NECK_Y0`` and ``NECK_Y1``: a neck 0.25 wide. Its area before the neck is
+    1.70 of 3.8875 (0.437), after it 2.15: between the straight cuts at 0.40 and 0.45 of the
+    area."""
+    def keep(x0, y0):
+        in_neck_cols = (x0 >= NECK_X0 - 1e-9) & (x0 < NECK_X1 - 1e-9)
+        return ~in_neck_cols | ((y0 >= NECK_Y0 - 1e-9) & (y0 < NECK_Y1 - 1e-9))
+    return _cells(4.0, 1.0, keep)
 
 
 def test_a_halving_cuts_through_a_neck_that_no_straight_cut_meets():
@@ -80,3 +85,28 @@ def test_the_shortest_cut_is_no_longer_than_any_straight_one_on_a_curved_island(
     halves, cut = halve_across(isl)
     assert cut <= straight * (1 + 1e-9)
     assert sorted(np.concatenate([h.work_faces for h in halves]).tolist()) == list(range(len(faces)))
+
+
+def test_a_halving_of_a_fork_cuts_one_prong_where_its_end_is_two_lobes():
+    """A fork (3 x 6: a base 1.5 high, two prongs 1 wide and 4.5 long) has its principal axis
+    along the prongs, and past the cut positions (0.30-0.70 of its area, the base holding
+    0.33) lie the two prongs' ends: two lobes. Holding both to one half leaves the shortest cut
+    between them (across both prongs, 2.0) with that half in two pieces, and of the straight
+    cuts only the one across the base (3.0) keeps both halves whole. Only the larger lobe
+    held, the cut runs across one prong: 1.0 x 3, one prong's part cut off, the rest whole."""
+    from texture.halving import _one_piece
+    from texture.regions import face_adjacency
+
+    fork = _cells(3.0, 6.0, lambda x0, y0: (y0 < 1.5 - 1e-9) | (x0 < 1.0 - 1e-9) | (x0 >= 2.0 - 1e-9))
+    straight = [halve_across(fork, cuts=[q]) for q in LONG_CUTS]
+    straight = [got[1] for got in straight if got is not None]
+    assert straight and min(straight) >= 3.0 * XYZ_SCALE * (1 - 1e-9)
+    halves, cut = halve_across(fork)
+    assert cut == pytest.approx(1.0 * XYZ_SCALE, rel=1e-9)
+    x = [h.uv[h.faces].mean(1)[:, 0] / XYZ_SCALE for h in halves]
+    prong = min(range(2), key=lambda k: len(halves[k].faces))
+    assert (x[prong] < 1.0).all() or (x[prong] > 2.0).all()  # within one prong
+    for h in halves:
+        assert _one_piece(face_adjacency(h.xyz, h.faces), np.ones(len(h.faces), bool))
+        assert np.allclose(h.uv, fork.uv[h.work_vertex])
+    assert sorted(np.concatenate([h.work_faces for h in halves]).tolist()) == list(range(len(fork.faces)))
