@@ -7,14 +7,14 @@ Every packing stage (:mod:`texture.placement`, :mod:`texture.scale_search`,
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
 
 from mnacore.triangles import triangle_areas
 
-from .outlines import island_outlines
+from .outlines import island_outlines, refine_slivers
 
 #: faces below this fraction of the median UV area carry no weight in the fit (xatlas drops them).
 SOLID_FACE_REL = 1e-2
@@ -22,10 +22,11 @@ SOLID_FACE_REL = 1e-2
 
 @dataclass(frozen=True)
 class OutlineMesh:
-    """What xatlas is handed: the islands' outlines over their own vertices."""
+    """What xatlas is handed: the islands' outlines over their own vertices (and, inside
+    outlines re-triangulated for xatlas's rasteriser, vertices placed by theirs)."""
 
     uv: np.ndarray
-    """(W, 2) outline vertices (chart units)."""
+    """(W + S, 2) outline vertices (chart units)."""
     faces: np.ndarray
     """(G, 3) outline faces, indices into ``uv``."""
     island: np.ndarray
@@ -34,6 +35,19 @@ class OutlineMesh:
     """(W,) our vertex of each outline vertex."""
     weight: np.ndarray
     """(V,) fit weight per vertex of the whole mesh (0 off the outlines)."""
+    frame: np.ndarray
+    """(S, 3) for each vertex after the first W (inside a re-triangulated outline:
+    :func:`texture.outlines.refine_slivers`), three outline vertices among the first W ..."""
+    coef: np.ndarray
+    """(S, 3) ... and its affine weights on them."""
+    vert_island: np.ndarray
+    """(W + S,) island of each outline vertex."""
+
+    def at(self, pos: np.ndarray) -> np.ndarray:
+        """The outline's vertices at the positions ``pos (V, 2)`` of the mesh's vertices (its
+        first W are mesh vertices, the others affine combinations of them)."""
+        real = pos[self.src]
+        return np.concatenate([real, np.einsum("sk,skd->sd", self.coef, real[self.frame])])
 
 @dataclass(frozen=True)
 class IslandSet:
@@ -83,7 +97,14 @@ class IslandSet:
         x_faces = island_outlines(self.uv, self.faces, self.island) if self.outlines else self.faces
         src, inverse = np.unique(x_faces, return_inverse=True)
         x_island = self.vert_island[x_faces[:, 0]]
-        return OutlineMesh(self.uv[src], inverse.reshape(-1, 3), x_island, src, self._fit_weight(x_faces, x_island))
+        weight = self._fit_weight(x_faces, x_island)
+        uv, faces = self.uv[src], inverse.reshape(-1, 3)
+        frame, coef = np.zeros((0, 3), np.int64), np.zeros((0, 3))
+        if self.outlines:  # fans of slivers cost xatlas's rasteriser the most
+            faces, x_island, frame, coef = refine_slivers(uv, faces, x_island)
+        mesh = OutlineMesh(uv, faces, x_island, src, weight, frame, coef,
+                           self.vert_island[src[np.concatenate([np.arange(len(src)), frame[:, 0]])]])
+        return replace(mesh, uv=mesh.at(self.uv))
 
     def _fit_weight(self, x_faces: np.ndarray, x_island: np.ndarray) -> np.ndarray:
         """Vertex weight: area of its solid faces, so slivers xatlas drops never steer the fit
@@ -103,7 +124,7 @@ class IslandSet:
         if not flip.any():
             return o.uv, o.faces, o.island
         uv = o.uv.copy()
-        uv[flip[self.vert_island[o.src]], 0] *= -1.0
+        uv[flip[o.vert_island], 0] *= -1.0  # the inner vertices' affine weights survive a mirror
         return uv, o.faces, o.island
 
     def verify(self, uv: np.ndarray, resolution: int) -> tuple[int, float]:
@@ -113,7 +134,7 @@ class IslandSet:
         from .verify import verify_packing
 
         o = self.outline
-        return verify_packing(uv[o.src], o.faces, o.island, resolution)
+        return verify_packing(o.at(uv), o.faces, o.island, resolution)
 
     def inside(self, px: np.ndarray, resolution: int) -> bool:
         """Whether every island vertex of ``px`` (V, 2 texels) lies in ``[0, resolution]^2``."""

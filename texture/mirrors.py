@@ -33,7 +33,7 @@ def gutter_clashes(isl, px: np.ndarray, islands: list[int], resolution: int, gap
     from .raster import face_id_image
 
     o = isl.outline  # the same region per island as its faces, far fewer triangles (long fans: spans)
-    face, _ = face_id_image(px[o.src][o.faces] / resolution, resolution, resolution, spans=True)
+    face, _ = face_id_image(o.at(px)[o.faces] / resolution, resolution, resolution, spans=True)
     label = np.where(face >= 0, o.island[np.maximum(face, 0)], -1)
     size, top = 2 * gap + 1, np.iinfo(np.int64).max
     high = ndimage.maximum_filter(label, size=size, mode="constant", cval=-1)

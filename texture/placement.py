@@ -93,9 +93,11 @@ def place(isl: IslandSet, atlas, tpu: float) -> Placed:
     src = isl.outline.src
     dst = np.zeros_like(isl.uv)
     seen = np.zeros(len(isl.uv), bool)
-    # xatlas normalises by w, h; its vertices are the outlines' (src -> ours)
-    dst[src[vmap]] = out_uv.astype(np.float64) * np.array([atlas.width, atlas.height])
-    seen[src[vmap]] = True
+    # xatlas normalises by w, h; its vertices are the outlines' (src -> ours), then the
+    # vertices inside re-triangulated outlines (none of ours: they follow the others)
+    real = vmap < len(src)
+    dst[src[vmap[real]]] = out_uv[real].astype(np.float64) * np.array([atlas.width, atlas.height])
+    seen[src[vmap[real]]] = True
     vi = isl.vert_island
     used = vi >= 0
     w = np.where(used, isl.outline.weight * seen, 0.0)
