@@ -141,11 +141,14 @@ def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, toler
 SLIVER_BBOX_RATIO = 50.0
 
 
-def bbox_ratio(uv: np.ndarray, faces: np.ndarray) -> float:
-    """The UV bounding boxes of ``faces`` summed, over their area (:data:`SLIVER_BBOX_RATIO`)."""
+def bbox_ratios(uv: np.ndarray, faces: np.ndarray, island: np.ndarray) -> np.ndarray:
+    """Per island, the UV bounding boxes of its faces summed over their area
+    (:data:`SLIVER_BBOX_RATIO`; inf for an island of no area)."""
     q = uv[faces]
-    area = float(triangle_areas(uv, faces).sum())
-    return float((np.ptp(q[:, :, 0], axis=1) * np.ptp(q[:, :, 1], axis=1)).sum()) / area if area > 0 else 0.0
+    boxes = np.bincount(island, np.ptp(q[:, :, 0], axis=1) * np.ptp(q[:, :, 1], axis=1))
+    areas = np.bincount(island, triangle_areas(uv, faces), minlength=len(boxes))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(areas > 0, boxes / np.where(areas > 0, areas, 1.0), np.inf)
 
 
 def refine_slivers(uv: np.ndarray, faces: np.ndarray, island: np.ndarray
@@ -165,16 +168,19 @@ def refine_slivers(uv: np.ndarray, faces: np.ndarray, island: np.ndarray
     new_faces, new_island, frames, weights = [faces], [island], [], []
     keep = np.ones(len(faces), bool)
     count = len(uv)
-    for k in np.unique(island):
+    for k in np.flatnonzero(bbox_ratios(uv, faces, island) > SLIVER_BBOX_RATIO):
         sel = np.flatnonzero(island == k)
-        if bbox_ratio(uv, faces[sel]) <= SLIVER_BBOX_RATIO:
-            continue
         vid, inv = np.unique(faces[sel], return_inverse=True)
         f = inv.reshape(-1, 3)
         v = uv[vid]
+        area = signed_areas(v, f)
+        # Triangle takes a planar triangulation: faces of one winding, none flat, no two
+        # vertices at one point (an island handed over whole may be none of these)
+        if not ((area > 0).all() or (area < 0).all()) or len(np.unique(v, axis=0)) < len(v):
+            continue
         border = half_edges(f)[edge_use_counts(edge_keys(np.arange(len(v)), f)) == 1]
         v2, f2 = igl.triangle.refine(v, border.astype(np.int64), f.astype(np.int64), "rq25YQ")
-        sign = np.sign(signed_areas(v, f).sum())
+        sign = np.sign(area[0])
         f2 = f2 if sign > 0 else f2[:, ::-1]  # Triangle winds counter-clockwise
         same_border = not (half_edges(f2)[edge_use_counts(edge_keys(np.arange(len(v2)), f2)) == 1] >= len(v)).any()
         if (len(v2) < len(v) or not np.array_equal(v2[:len(v)], v) or not same_border
