@@ -192,9 +192,13 @@ def iter_hits(tri_uv: np.ndarray, height: int, width: int, strict: bool = True,
 
 
 def coverage_count(tri_uv: np.ndarray, height: int, width: int) -> np.ndarray:
-    """(H, W) int32: how many triangles strictly contain each texel centre."""
+    """(H, W) int32: how many triangles strictly contain each texel centre.
+
+    By row spans (:func:`iter_spans`; the same hits): a fan of long, thin faces (a cap of
+    3,000 sections) cost its faces' boxes, 54 s at 2048 texels against 0.8 s by spans, and
+    spans were faster on ordinary meshes too (a 111k-face unwrap 0.87 -> 0.47 s)."""
     out = np.zeros(height * width, np.int32)
-    for h in iter_hits(tri_uv, height, width, strict=True):
+    for h in iter_hits(tri_uv, height, width, strict=True, spans=True):
         np.add.at(out, h.row * width + h.col, 1)
     return out.reshape(height, width)
 
