@@ -146,6 +146,20 @@ def test_crossing_edges_match_brute_force():
     assert got > 10  # the random soup does overlap
 
 
+def test_crossing_edges_match_brute_force_across_edge_lengths():
+    """Edges of lengths 0.01-3 (a soup of triangles of log-uniform sizes): every crossing of
+    a long edge with a short one is found, though each edge looks only as far as its own
+    length for edges no longer than itself."""
+    rng = np.random.default_rng(5)
+    n = 80
+    faces = np.arange(3 * n).reshape(-1, 3)
+    size = np.exp(rng.uniform(np.log(0.01), np.log(3.0), (n, 1, 1)))
+    uv = (rng.uniform(0, 4, (n, 1, 2)) + size * rng.uniform(-1, 1, (n, 3, 2))).reshape(-1, 2)
+    got = len(crossing_edges(faces, uv))
+    assert got == _brute_force_crossings(boundary_edges(faces), uv)
+    assert got > 10
+
+
 def test_boundary_edges_of_a_grid():
     g = 6
     edges = boundary_edges(grid_faces(g))
