@@ -175,6 +175,12 @@ LONG_CUTS = np.linspace(0.3, 0.7, 9)
 #: band still reaches 20,000 / sqrt(F) faces deep across an island about sqrt(F) faces wide
 #: (30 at 400,000): room for the cut to run straight on the surface, not for a neck far off.
 BAND_MAX_FACES = 20_000
+#: an end of a band cut in pieces is held by its largest only where that holds at least this
+#: share of the end's area: a few lobes (a fork's two prongs: a half each; forked ends of
+#: relaxed islands: 0.55-1.0), not a scatter of faces. Where faces span the whole band (a
+#: tube's side of one row of faces as tall as it), the ends are single faces that their
+#: centroids interleave, 1/n of the end each, and holding one would let the cut run anywhere.
+LOBE_SHARE = 1.0 / 3.0
 #: a band cut's edges weigh ``1 + CENTRE_BIAS * d`` times their length, ``d`` their distance
 #: (area fraction) from the centre: a tie-break (a cut at most 0.1 % longer may win), not a preference
 CENTRE_BIAS = 1e-3
@@ -214,7 +220,10 @@ def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float, width
         if not ends:
             return None
         for end in ends:  # an end's smaller lobes go free
-            free |= end & ~_largest_piece(adj, end, area)
+            held = _largest_piece(adj, end, area)
+            if area[held].sum() < LOBE_SHARE * area[end].sum():
+                return None  # not lobes: a scatter of faces (see LOBE_SHARE)
+            free |= end & ~held
         lo = min_cut_labels(label, free, adj, 0, 1, weight) == 0
     if not lo.any() or lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
         return None
