@@ -148,7 +148,8 @@ def _one_piece(adj, mask: np.ndarray) -> bool:
 
 
 def _largest_piece(adj, mask: np.ndarray, area: np.ndarray) -> np.ndarray:
-    """The faces of ``mask``'s largest piece (3D area, :func:`_pieces`)."""
+    """The faces of ``mask``'s largest piece (3D area, :func:`_pieces`); ``mask`` itself where
+    it is one piece or none."""
     n, piece = _pieces(adj, mask)
     if n <= 1:
         return mask
@@ -215,18 +216,21 @@ def _band_cut(isl: Island, adj, pos: np.ndarray, lo_q: float, hi_q: float, width
     # equal, and the bare minimum cut is the one nearest the first position: uneven halves)
     weight = 1.0 + CENTRE_BIAS * np.abs(0.5 * (pos[adj.a] + pos[adj.b]) - centre)
     lo = min_cut_labels(label, free, adj, 0, 1, weight) == 0
-    if not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
-        ends = [end for end in (pos <= lo_q, pos > hi_q) if not _one_piece(adj, end)]
-        if not ends:
-            return None
-        for end in ends:  # an end's smaller lobes go free
+    if not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):  # (an empty half is no piece)
+        lobed = False
+        for end in (pos <= lo_q, pos > hi_q):  # an end's smaller lobes go free
             held = _largest_piece(adj, end, area)
+            if held is end:  # one piece (or none)
+                continue
             if area[held].sum() < LOBE_SHARE * area[end].sum():
                 return None  # not lobes: a scatter of faces (see LOBE_SHARE)
             free |= end & ~held
+            lobed = True
+        if not lobed:
+            return None
         lo = min_cut_labels(label, free, adj, 0, 1, weight) == 0
-    if not lo.any() or lo.all() or not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
-        return None
+        if not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
+            return None
     lo, _ = smooth_cut(isl, lo)
     cut = float(adj.length[lo[adj.a] != lo[adj.b]].sum())
     return (cut, lo) if cut <= ZIGZAG * width else None

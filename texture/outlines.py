@@ -183,11 +183,11 @@ def refine_slivers(uv: np.ndarray, faces: np.ndarray, island: np.ndarray
         sign = np.sign(area[0])
         f2 = f2 if sign > 0 else f2[:, ::-1]  # Triangle winds counter-clockwise
         same_border = not (half_edges(f2)[edge_use_counts(edge_keys(np.arange(len(v2)), f2)) == 1] >= len(v)).any()
+        area2 = signed_areas(v2, f2)
         if (len(v2) < len(v) or not np.array_equal(v2[:len(v)], v) or not same_border
-                or (np.sign(signed_areas(v2, f2)) != sign).any()
-                or abs(triangle_areas(v2, f2).sum() - triangle_areas(v, f).sum()) > 1e-9 * triangle_areas(v, f).sum()):
+                or (np.sign(area2) != sign).any() or abs(area2.sum() - area.sum()) > 1e-9 * abs(area.sum())):
             continue
-        a, b, c = f[int(np.argmax(triangle_areas(v, f)))]
+        a, b, c = f[int(np.argmax(np.abs(area)))]
         basis = np.column_stack([v[b] - v[a], v[c] - v[a]])
         st = np.linalg.solve(basis, (v2[len(v):] - v[a]).T).T  # p = a + s (b - a) + t (c - a)
         frames.append(np.tile(vid[[a, b, c]], (len(st), 1)))

@@ -168,8 +168,8 @@ def crossing_edges(faces: np.ndarray, uv: np.ndarray, edges: np.ndarray | None =
     # two segments can only meet if their midpoints lie within the sum of their half
     # lengths, so within the longer one's length: each edge looks that far for edges no
     # longer than itself. (One radius for all, the longest edge's, made every pair of a
-    # cluster of short edges a candidate: a pole of 1,500 slivers beside an edge 100 times
-    # longer gave millions of pairs per SLIM iteration.)
+    # cluster of short edges a candidate: a cap's rim of 1,500 short edges beside cut edges
+    # 100 times longer gave a million pairs per SLIM iteration.)
     mid = 0.5 * (a + b)
     near = cKDTree(mid).query_ball_point(mid, length * (1.0 + 1e-9) + 1e-300, return_sorted=False)
     counts = np.fromiter((len(n) for n in near), np.int64, len(near))
