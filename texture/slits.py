@@ -24,7 +24,7 @@ from mnacore.triangles import signed_areas, triangle_areas
 
 from .distortion_faces import face_geometry
 from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
-from .relax import MULTIRES_FACES, RelaxConfig, boundary_edges, energy_excess, is_injective, relax_island
+from .relax import RelaxConfig, boundary_edges, energy_excess, is_injective, relax_island
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
 MAX_MISSES = 2
@@ -92,7 +92,9 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
 def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
     """A start (:func:`texture.flatten.start_map`) then SLIM at the isometric scale; None if
     the start is not valid."""
-    uv = start_map(xyz, faces, convex=len(faces) > MULTIRES_FACES)
+    # the lower of the conformal and Tutte maps at any size: relax_disk makes the convex map
+    # its two-resolution path needs, and SLIM starts here where that path is refused
+    uv = start_map(xyz, faces)
     signed = signed_areas(uv, faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
         return None

@@ -197,3 +197,21 @@ def test_a_coarse_map_past_the_callers_limit_is_not_refined():
     capped = replace(CFG, multires_faces=1000, slim_max_faces=1000, coarse_excess_limit=0.1)
     new, stats = relax_disk(xyz, uv, faces, capped)
     assert stats["mode"] == "start" and stats["iterations"] == 0 and (new == uv).all()
+
+
+def test_slim_after_a_refused_multires_starts_from_the_callers_map():
+    """The coarse copy needs a convex border, so a conformal start is swapped for Tutte's map
+    there; where the two-resolution path is refused, SLIM must start from the caller's map.
+    A developable sector's conformal map is its isometry (excess ~1e-8); SLIM from Tutte's
+    disk ended at 6e-4 (and on a sliver-fan cap, 3.45 against the start's 0.24)."""
+    from texture.flatten import lscm
+
+    xyz, faces = _cone_sector(n_r=20, n_t=60)
+    uv = lscm(xyz, faces)
+    uv *= np.sqrt(triangle_areas(xyz, faces).sum() / signed_areas(uv, faces).sum())
+    start = energy_excess(xyz, uv, faces)
+    assert start < 1e-6 and not is_convex_border(uv, ordered_boundary(faces))
+    refused = RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=len(faces) - 1, coarse_excess_limit=1e-9)
+    new, stats = relax_disk(xyz, uv, faces, refused)
+    assert stats["mode"] != "multires" and _injective(new, faces)
+    assert stats["excess"] <= start
