@@ -30,7 +30,7 @@ import numpy as np
 from mnacore.triangles import signed_areas, triangle_areas
 
 from .flatten import cut_to_disk, relax_disk, start_map
-from .relax import MULTIRES_FACES, boundary_edges, boundary_length
+from .relax import boundary_edges, boundary_length
 from .slits import slit_island
 
 #: a hole whose fan covers at most this share of the region's 3D area is filled for flattening
@@ -104,7 +104,7 @@ def flatten_filled(xyz: np.ndarray, faces: np.ndarray, relax, target: float, max
     except (RuntimeError, ValueError, KeyError, IndexError):
         return None
     x = p[disk.source]
-    uv = start_map(x, disk.faces, convex=len(disk.faces) > MULTIRES_FACES)
+    uv = start_map(x, disk.faces, convex=0 < relax.slim_max_faces < len(disk.faces))
     signed = signed_areas(uv, disk.faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
         return None

@@ -139,6 +139,9 @@ def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, toler
 #: irregular outline stay at 7-30 (a scan's islands at 111k faces, 460-700 border vertices:
 #: 0.18 s per call either way), so below this they keep their ear clipping.
 SLIVER_BBOX_RATIO = 50.0
+#: Steiner vertices Triangle may add per outline vertex (a graded quality mesh of a round
+#: loop of n vertices needs a few times n; see :func:`refine_slivers`)
+STEINER_PER_VERTEX = 4
 
 
 def bbox_ratios(uv: np.ndarray, faces: np.ndarray, island: np.ndarray) -> np.ndarray:
@@ -179,7 +182,14 @@ def refine_slivers(uv: np.ndarray, faces: np.ndarray, island: np.ndarray
         if not ((area > 0).all() or (area < 0).all()) or len(np.unique(v, axis=0)) < len(v):
             continue
         border = half_edges(f)[edge_use_counts(edge_keys(np.arange(len(v)), f)) == 1]
-        v2, f2 = igl.triangle.refine(v, border.astype(np.int64), f.astype(np.int64), "rq25YQ")
+        # at most STEINER_PER_VERTEX new vertices per outline vertex: Triangle's quality
+        # refinement near small input angles can add vertices without end (a sliver-pole
+        # sphere's outline ran it out of memory and it exits); capped, the rest stay slivers
+        cap = STEINER_PER_VERTEX * len(v)
+        try:
+            v2, f2 = igl.triangle.refine(v, border.astype(np.int64), f.astype(np.int64), f"rq25YQS{cap}")
+        except RuntimeError:  # Triangle gave up (its own exit): keep the ear clipping
+            continue
         sign = np.sign(area[0])
         f2 = f2 if sign > 0 else f2[:, ::-1]  # Triangle winds counter-clockwise
         same_border = not (half_edges(f2)[edge_use_counts(edge_keys(np.arange(len(v2)), f2)) == 1] >= len(v)).any()

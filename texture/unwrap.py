@@ -60,7 +60,7 @@ from .long_islands import split_long_islands
 from .merge import merge_islands
 from .meshprep import prepare_mesh
 from .regions import MIN_FRACTION, clean_labels, face_adjacency, regions, smooth_borders
-from .relax import MULTIRES_FACES
+from .relax import MULTIRES_FACES, SLIM_MAX_FACES
 from .unwrap_islands import (
     WHOLE,
     Island,
@@ -98,7 +98,7 @@ class UnwrapConfig:
     """Islands above this many faces are flattened by :mod:`texture.multires` (SLIM on a
     coarse copy, then ARAP): SLIM's iteration costs 0.26 s at 46k faces and 17-23 s at 418k,
     a coarse SLIM plus ARAP about 1 s at 47k. Below it SLIM alone is fast enough."""
-    slim_max_faces: int = 100_000
+    slim_max_faces: int = SLIM_MAX_FACES
     """An island above this many faces whose two-resolution flattening fails is not handed to
     SLIM (minutes at 400k faces) but kept at its start, so the split stage halves it."""
     resolution: int = 2048
