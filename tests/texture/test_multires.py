@@ -215,3 +215,18 @@ def test_slim_after_a_refused_multires_starts_from_the_callers_map():
     new, stats = relax_disk(xyz, uv, faces, refused)
     assert stats["mode"] != "multires" and _injective(new, faces)
     assert stats["excess"] <= start
+
+
+def test_a_fresh_embedding_starts_conformal_where_slim_may_run():
+    """slits' fresh embedding: where SLIM may run (up to ``slim_max_faces``) the start is the
+    lower of the conformal and Tutte maps, so a refused two-resolution path leaves the
+    developable sector at its isometry; above it, Tutte's map is kept as the start."""
+    from texture.slits import _embed
+
+    xyz, faces = _cone_sector(n_r=20, n_t=60)
+    refused = RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=len(faces) - 1, coarse_excess_limit=1e-9)
+    uv = _embed(xyz, faces, refused)
+    assert _injective(uv, faces) and energy_excess(xyz, uv, faces) < 1e-6
+    capped = _embed(xyz, faces, RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=len(faces) - 1,
+                                            coarse_excess_limit=1e-9, slim_max_faces=len(faces) - 1))
+    assert is_convex_border(capped, ordered_boundary(faces)) and energy_excess(xyz, capped, faces) > 1.0
