@@ -14,7 +14,8 @@ it, so starting one costs little and inherits no other thread's locks.
 A worker can still hang: twice a packing worker waited forever in xatlas's ``Destroy``,
 joining a thread of xatlas's own scheduler (once with fork, once with the fork server, in
 about a dozen test runs; presumably a wake-up its shutdown misses). So a pool in which no
-job has finished for ``STALL_SECONDS`` is taken for hung: its workers are killed and the
+job has finished for ``STALL_SECONDS``, and whose workers used next to no CPU time in it
+(``WORKING_SHARE``: a long job is busy, a hung one waits), is taken for hung: its workers are killed and the
 jobs they had not finished run here instead, with the same result (the jobs are
 deterministic), only later. The hang comes with the number of xatlas calls: the unwrap's
 quarter-turn search makes 256 per unwrap, and then a test run waited out a whole stall (one
@@ -50,6 +51,13 @@ MIN_FACES = 20_000
 #: seconds without any job finishing after which a pool is taken for hung (the longest job
 #: measured, a 418k-face island's relaxation at 1M input faces, took under 30 s)
 STALL_SECONDS = 180.0
+
+#: a pool whose workers used at least this share of a stall window in CPU time is working,
+#: not hung, and is waited for: the hang is a wait on a lost wake-up, which uses no CPU, while
+#: a long job on a busy machine does (a sliver-pole sphere's SLIM, run beside two fits, passed
+#: the stall, was killed and ran again here). Where the workers' CPU time cannot be read
+#: (no /proc), a stall is taken for a hang, as before.
+WORKING_SHARE = 0.01
 
 #: imported once by the fork server, so that its workers start with them loaded
 PRELOAD = ["numpy", "scipy.sparse", "scipy.spatial", "igl", "xatlas",
@@ -124,18 +132,37 @@ def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None 
     return [fn(j, shared) for j in jobs]
 
 
+def _cpu_seconds(ex) -> float | None:
+    """User and system CPU seconds of the pool's worker processes so far (Linux's
+    ``/proc/PID/stat``), or None where that cannot be read."""
+    try:
+        total = 0
+        for pid in list(getattr(ex, "_processes", {}) or {}):
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()  # the name may hold spaces
+            total += int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15)
+        return total / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def _pooled(fn, jobs: list, workers: int, shared, stall: float) -> list:
     """The jobs' futures, once every job finished or the pool stalled (no job finished for
-    ``stall`` seconds: its workers are killed and the unfinished futures left undone)."""
+    ``stall`` seconds while the workers used under ``WORKING_SHARE`` of it in CPU time: its
+    workers are killed and the unfinished futures left undone)."""
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     ex = ProcessPoolExecutor(workers, mp_context=_context(), initializer=_set_shared, initargs=(shared,))
     futures = [ex.submit(_call, (fn, j)) for j in jobs]
     pending = set(futures)
+    used = _cpu_seconds(ex)
     try:
         while pending:
             done, pending = wait(pending, timeout=stall, return_when=FIRST_COMPLETED)
-            if not done:
+            now = _cpu_seconds(ex)
+            working = used is not None and now is not None and now - used >= WORKING_SHARE * stall
+            used = now
+            if not done and not working:
                 break
     finally:
         if pending:

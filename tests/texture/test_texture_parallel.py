@@ -115,3 +115,21 @@ def test_each_worker_runs_its_blas_on_one_thread_and_the_caller_keeps_its_own():
     got = parallel_map(_blas_threads, [0, 1, 2, 3], workers=2)
     assert all(len(g) >= 2 and set(g.values()) == {1} for g in got)
     assert _blas_threads() == before  # the caller's own pools are left as they were
+
+
+def _busy_in_a_worker(x, shared):
+    if os.getpid() != shared["caller"]:
+        end = time.process_time() + shared["seconds"]
+        while time.process_time() < end:  # computing, as a long SLIM job does
+            pass
+    return x, os.getpid()
+
+
+def test_a_pool_whose_workers_compute_past_the_stall_is_not_taken_for_hung():
+    # each job computes for 3 CPU seconds, past a 1 s stall: its workers use CPU, so the pool
+    # is waited for and every job runs once, in a worker (a killed pool reruns them here)
+    caller = os.getpid()
+    got = parallel_map(_busy_in_a_worker, [0, 1], workers=2, shared={"caller": caller, "seconds": 3.0},
+                       stall_seconds=1.0)
+    assert [x for x, _ in got] == [0, 1]
+    assert caller not in {pid for _, pid in got}
