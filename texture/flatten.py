@@ -205,18 +205,20 @@ def holed_map(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
     return lscm(vertices, faces)
 
 
-def start_map(vertices: np.ndarray, faces: np.ndarray, convex: bool = False) -> np.ndarray:
+def start_map(vertices: np.ndarray, faces: np.ndarray, slim_max_faces: int | None = None) -> np.ndarray:
     """A flip-free start for SLIM on a disk: of the conformal map (:func:`lscm`, where it is
     an embedding) and :func:`tutte`, the one of lower energy excess at the isometric scale
-    (SLIM descends from it). ``convex=True`` (the two-resolution flattening needs a convex
-    border): Tutte. A conformal map only scales, so on a developable piece it *is* the
-    isometry: a cut cylinder wall (16:1) starts at excess 0 instead of Tutte's 68, whose
+    (SLIM descends from it). A conformal map only scales, so on a developable piece it *is*
+    the isometry: a cut cylinder wall (16:1) starts at excess 0 instead of Tutte's 68, whose
     circle border squeezes the strip; on the benchmark fits SLIM then stops after 6
-    iterations instead of 19 (the t-shirt's islands)."""
-    from .relax import energy_excess
+    iterations instead of 19 (the t-shirt's islands). A disk above ``slim_max_faces`` faces
+    (default :data:`texture.relax.SLIM_MAX_FACES`; 0 = no limit), where SLIM never runs,
+    gets Tutte's map alone: the two-resolution flattening needs its convex border."""
+    from .relax import SLIM_MAX_FACES, energy_excess
 
+    cap = SLIM_MAX_FACES if slim_max_faces is None else slim_max_faces
     t = tutte(vertices, faces)
-    c = None if convex or len(faces) < 2 else lscm(vertices, faces)
+    c = None if 0 < cap < len(faces) or len(faces) < 2 else lscm(vertices, faces)
     if c is None:
         return t
     area = triangle_areas(vertices, faces).sum()

@@ -104,7 +104,7 @@ def flatten_filled(xyz: np.ndarray, faces: np.ndarray, relax, target: float, max
     except (RuntimeError, ValueError, KeyError, IndexError):
         return None
     x = p[disk.source]
-    uv = start_map(x, disk.faces, convex=0 < relax.slim_max_faces < len(disk.faces))
+    uv = start_map(x, disk.faces, relax.slim_max_faces)
     signed = signed_areas(uv, disk.faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
         return None

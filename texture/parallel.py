@@ -15,8 +15,8 @@ A worker can still hang: twice a packing worker waited forever in xatlas's ``Des
 joining a thread of xatlas's own scheduler (once with fork, once with the fork server, in
 about a dozen test runs; presumably a wake-up its shutdown misses). So a pool in which no
 job has finished for ``STALL_SECONDS``, and whose workers used next to no CPU time in it
-(``WORKING_SHARE``: a long job is busy, a hung one waits), is taken for hung: its workers are killed and the
-jobs they had not finished run here instead, with the same result (the jobs are
+(``WORKING_SHARE``: a long job is busy, a hung one waits), is taken for hung: its workers
+are killed and the jobs they had not finished run here instead, with the same result (the jobs are
 deterministic), only later. The hang comes with the number of xatlas calls: the unwrap's
 quarter-turn search makes 256 per unwrap, and then a test run waited out a whole stall (one
 of two full CI runs, one of 18 runs of the unwrap tests); the packer's own xatlas jobs

@@ -40,9 +40,9 @@ from .parallel import parallel_map
 MULTIRES_FACES = 20_000
 #: the unwrap's size above which a disk whose two-resolution flattening fails is not handed
 #: to SLIM (``UnwrapConfig.slim_max_faces``). Only up to it does a disk's start offer the
-#: conformal map (SLIM may start there); above it the start is Tutte's alone, as the
-#: two-resolution path needs, and LSCM's solve on a 250k-face island is not spent (it took
-#: the 1M-face scan's unwrap 147 -> 186 s)
+#: conformal map (:func:`texture.flatten.start_map`; SLIM may start there); above it the
+#: start is Tutte's alone, as the two-resolution path needs, and LSCM's solve on a 250k-face
+#: island is not spent (it took the 1M-face scan's unwrap 147 -> 186 s)
 SLIM_MAX_FACES = 100_000
 
 #: weight of the soft constraints that hold border vertices (libigl's default).

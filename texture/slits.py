@@ -92,9 +92,8 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
 def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
     """A start (:func:`texture.flatten.start_map`) then SLIM at the isometric scale; None if
     the start is not valid."""
-    # the lower of the conformal and Tutte maps where SLIM may run (relax_disk makes the
-    # convex map its two-resolution path needs, and SLIM starts here where that is refused)
-    uv = start_map(xyz, faces, convex=0 < cfg.slim_max_faces < len(faces))
+    # relax_disk makes the convex map its two-resolution path needs; SLIM starts here where that is refused
+    uv = start_map(xyz, faces, cfg.slim_max_faces)
     signed = signed_areas(uv, faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
         return None

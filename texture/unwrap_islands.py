@@ -16,7 +16,7 @@ from .flatten import cut_to_disk, holed_map, relax_disk, split_pinched, start_ma
 from .holes import cut_seam, flatten_filled
 from .meshprep import face_components
 from .parallel import parallel_map
-from .relax import SLIM_MAX_FACES, RelaxConfig, energy_excess, is_injective, relax_island
+from .relax import RelaxConfig, energy_excess, is_injective, relax_island
 from .slits import slit_island
 
 
@@ -183,7 +183,7 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
                 uv = np.zeros((len(disk.source), 2))
                 uv[disk.faces[0]] = isometric_triangle(p[disk.source][disk.faces[0]])
             else:
-                uv = start_map(p[disk.source], disk.faces, convex=len(disk.faces) > SLIM_MAX_FACES)
+                uv = start_map(p[disk.source], disk.faces)
             if not np.isfinite(uv).all() or (signed_areas(uv, disk.faces) <= 0).any():
                 raise RuntimeError("start embedding folded (numerically)")
         except (RuntimeError, ValueError, KeyError, IndexError):
