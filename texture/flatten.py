@@ -2,10 +2,8 @@
 
 - :func:`split_pinched` splits vertices where two fans of a region touch (a pinch), so
   the region is a manifold surface with boundary.
-- :func:`cut_to_disk` makes it a disk: a short cut graph through every handle and between
-  the boundary loops (:mod:`texture.cutgraph`: greedy shortest loops; libigl's
-  ``cut_to_disk`` ignores edge lengths, and its cuts on the benchmark fits' holed regions
-  and merge unions were 1.2-2.4 times as long), then libigl's ``cut_mesh``; a closed
+- :func:`cut_to_disks` makes it a disk: libigl's ``cut_to_disk`` (a cut graph through
+  every handle and between every pair of boundary loops) and ``cut_mesh``; a closed
   genus-0 region (no cut needed by that definition, but no boundary either) is cut along
   the graph-shortest path from its first vertex to the vertex farthest from it.
 - :func:`tutte` embeds a disk in the unit circle with uniform weights (Tutte's theorem:
@@ -27,7 +25,6 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from mnacore.triangles import signed_areas, triangle_areas
 
-from .cutgraph import short_cut_flags
 from .islands import neighbour_mean, vertex_adjacency
 from .meshprep import corner_groups
 
@@ -122,9 +119,10 @@ def cut_to_disk(vertices: np.ndarray, faces: np.ndarray) -> Disk:
     if is_disk(faces):
         return Disk(faces, np.arange(len(vertices)), 0)
     if boundary_loop_count(faces) == 0 and euler_characteristic(faces) == 2:
-        flags = _cut_flags(faces, _farthest_path(vertices, faces))
+        cuts = _farthest_path(vertices, faces)
     else:
-        flags = short_cut_flags(vertices, faces)
+        cuts = [list(c) for c in igl.cut_to_disk(faces)]
+    flags = _cut_flags(faces, cuts)
     _, new_faces, source = igl.cut_mesh(np.asarray(vertices, np.float64), faces, flags)
     new_faces = np.asarray(new_faces, np.int64)
     if not is_disk(new_faces):
