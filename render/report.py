@@ -54,9 +54,9 @@ def compare_table(run_dir: Path) -> str | None:
 
     data = json.loads(js.read_text())
     if isinstance(data, dict) and isinstance(data.get("methods"), list) and data["methods"]:
-        from texture.compare import LEGEND, table
+        from texture.compare import legend, table
 
-        return table(data["methods"]) + "\n\n" + LEGEND
+        return table(data["methods"]) + "\n\n" + legend(data)
     methods = [m for m in ("mna", "ours", "xatlas") if _method_numbers(data, m)]
     if not methods and isinstance(data, dict):
         methods = [k for k, v in data.items() if isinstance(v, dict)]

@@ -183,8 +183,15 @@ LEGEND = ("Every row is measured the same way, in the unit-ball frame. Seam leng
           "texture area (docs/texture.md). Flipped, mirrored, folded and undecided are percentages of the "
           "surface area: flipped = UV triangles turned over within their island; mirrored = the texture "
           "reads mirror-inverted from the front; folded = facing the other way from the input; undecided "
-          "= the input faces both ways within 1 % of its diameter there. Time: the UV method alone "
-          "(ours: trim, orient, relax, pack).")
+          "= the input faces both ways within 1 % of its diameter there.")
+
+
+def legend(result: dict) -> str:
+    """:data:`LEGEND` and what the time column counts for ``result`` (``compare.json``): ours is
+    the reconstruction's export stages, or, for an unwrap's comparison (it has an ``unwrap``
+    entry), the unwrap after the fit."""
+    ours = "the unwrap after the fit" if "unwrap" in result else "trim, orient, relax, pack"
+    return f"{LEGEND} Time: the UV method alone (ours: {ours})."
 
 
 def _fmt(value, spec):
@@ -219,7 +226,7 @@ def _relax_sentence(r: RelaxStats) -> str:
 
 def to_markdown(result: dict, export: ExportSummary) -> str:
     parts = [f"# compare: {result['run']}", "",
-             LEGEND + f" Reference surface: {result['reference']}.", "",
+             legend(result) + f" Reference surface: {result['reference']}.", "",
              table(result["methods"]), "",
              export.sentence(), ""]
     if result["sweep"]:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from mnacore.atomic import write_json, write_text
 
-from .compare import LEGEND, SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, table
+from .compare import SWEEP_MAX_COST, SWEEP_MAX_ITERATIONS, _row, _xatlas_row, legend, table
 from .export import read_back
 from .harness import measure
 from .unwrap_run import load_unwrap_input, read_unwrap_json, unwrap_harness_context
@@ -55,7 +55,7 @@ def to_markdown(result: dict) -> str:
     a = result["unwrap"]["assignment"]
     parts = [f"# compare (unwrap): {result['run']}", "",
              "Ours (`mna unwrap`) and xatlas on the same input mesh, measured the same way; reference: the "
-             "input mesh. Time: the UV method alone (ours: after the fit).", "", LEGEND, "",
+             "input mesh.", "", legend(result), "",
              table(result["methods"]), "",
              f"Face assignment: {a['far_faces']} faces farther than {a['far_tol']} from every chart "
              f"({100 * a['far_area_fraction']:.1f} % of the area, nearest-chart labels); fallback components "

@@ -104,6 +104,7 @@ def test_compare_tabulates_every_method(tmp_path, monkeypatch):
     assert ours["seam_length"] <= xa["seam_length"] + 1e-9  # xatlas cannot join our separate islands
     md = (run / "compare.md").read_text()
     assert "| mna | reconstruction |" in md and "xatlas sweep" in md
+    assert md.count("Time: the UV method alone (ours: trim, orient, relax, pack).") == 1
     # uv-metrics on the run's own files reports what compare reports (one reference, one frame)
     for method, path in (("mna", run / "mesh.obj"), ("xatlas", run / "xatlas" / "mesh.glb")):
         assert main(["uv-metrics", str(path), "-o", str(tmp_path / f"{method}.json")]) == 0

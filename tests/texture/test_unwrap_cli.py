@@ -72,6 +72,9 @@ def test_compare_uses_the_same_input_mesh_for_xatlas(unwrapped):
     assert rows["mna"]["faces"] == rows["xatlas"]["faces"] == len(mesh.faces)
     assert rows["mna"]["mesh"] == rows["xatlas"]["mesh"] == "input"
     assert (out / "xatlas" / "mesh.obj").is_file() and (out / "compare.md").is_file()
+    # the time column counts the unwrap after the fit, said once (not the reconstruction's stages)
+    md = (out / "compare.md").read_text()
+    assert md.count("Time: the UV method alone (ours: the unwrap after the fit).") == 1 and "trim, orient" not in md
     # uv-metrics on the folder's files: the same reference and frame, so the same numbers
     for method, path in (("mna", out / "mesh.glb"), ("xatlas", out / "xatlas" / "mesh.obj")):
         summary = out.parent / f"{method}_metrics.json"
