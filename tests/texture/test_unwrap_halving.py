@@ -110,3 +110,29 @@ def test_a_halving_of_a_fork_cuts_one_prong_where_its_end_is_two_lobes():
         assert _one_piece(face_adjacency(h.xyz, h.faces), np.ones(len(h.faces), bool))
         assert np.allclose(h.uv, fork.uv[h.work_vertex])
     assert sorted(np.concatenate([h.work_faces for h in halves]).tolist()) == list(range(len(fork.faces)))
+
+
+def test_a_rounds_halvings_in_the_pool_are_the_serial_ones(monkeypatch):
+    """The packing round's halvings (:func:`texture.unwrap_layout._halvings`) run in the process
+    pool where the islands are large: the same halvings, cut lengths and halves (UVs, faces) as
+    one after the other here. The strip and a plain rectangle, each halved across and along at
+    the three positions: 12 halvings."""
+    from texture import parallel, unwrap_layout
+    from texture.unwrap import UnwrapConfig
+
+    islands = [_necked_strip(), _cells(2.0, 1.5, lambda x, y: np.ones(len(x), bool))]
+    comp = np.zeros(max(int(i.work_faces.max()) for i in islands) + 1, np.int64)
+    cfg = UnwrapConfig()
+    runs = []
+    for min_faces in (10**9, 0):  # never the pool, always the pool
+        monkeypatch.setattr(unwrap_layout, "MIN_FACES", min_faces)
+        runs.append(unwrap_layout._halvings(islands, comp, cfg, first_seam=False))
+    serial, pooled = runs
+    assert parallel.peak_worker_rss_mb() > 0  # a worker ran them
+    assert len(serial) == len(pooled) >= 6
+    for (a, da), (b, db) in zip(serial, pooled):
+        assert da == db
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x.faces, y.faces)
+            np.testing.assert_array_equal(x.uv, y.uv)
+            np.testing.assert_array_equal(x.work_faces, y.work_faces)
