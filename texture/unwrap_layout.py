@@ -138,7 +138,8 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool,
                 tried.append((k, {"island_rank": rank, "along_axis": along, "at": where}))
     # each halving is a maximum flow on its band and moves its ears: independent, so they run in
     # the pool where the islands are large (the 111k-face scan: 18 a round, a quarter of its packing)
-    done = parallel_map(_halve_job, jobs, parallel=sum(len(j[0].faces) for j in jobs) >= MIN_FACES)
+    halved_faces = sum(len(islands[k].faces) for k in {k for k, _ in tried})  # each island once
+    done = parallel_map(_halve_job, jobs, parallel=halved_faces >= MIN_FACES)
     return [(islands[:k] + islands[k + 1:] + halved[0], {**d, "cut_length": halved[1], "first_seam": first_seam})
             for (k, d), halved in zip(tried, done) if halved is not None]
 
