@@ -21,6 +21,10 @@ oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered
   non-manifold vertices (several fans meeting at one point) are split into one working
   vertex per fan: a working vertex is a group of face corners on one welded point that
   are connected through the remaining (manifold, consistently oriented) edges;
+- on the rim of a double-sided open surface, where a face meets its own reversed copy, the
+  two sides stay joined, except at one end of a chord (an inner edge between two rim
+  vertices), where the rim is cut so that the chord's front and back copies do not join the
+  same two working vertices (:func:`fold_cuts`);
 - degenerate faces (a repeated vertex after welding, or zero 3D area) are left out of
   the working mesh (``work_face == -1``); :mod:`texture.unwrap` gives them the UVs of
   their corners in a neighbouring island, so they still get valid UVs.
@@ -90,13 +94,15 @@ def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) 
     return repeated | (triangle_areas(vertices, faces) <= DEGENERATE_AREA * diag * diag)
 
 
-def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None) -> tuple[np.ndarray, dict]:
+def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None,
+                  cut: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """(Fw, 3) working vertex per corner of faces ``wf`` (welded ids), cutting bad edges.
 
     Corners ``(f, c)`` and ``(g, d)`` on the same welded point are joined when faces
     ``f`` and ``g`` share an edge through that point that is used by exactly these two
     faces in opposite directions (manifold and consistently oriented). ``pairs``:
-    :func:`mnacore.triangles.edge_pairs` of ``wf``, where the caller has them.
+    :func:`mnacore.triangles.edge_pairs` of ``wf``, where the caller has them; ``cut``:
+    (P,) bool over ``pairs.a``, pairs left unjoined (:func:`fold_cuts`).
     """
     Fw = len(wf)
     pairs = edge_pairs(wf) if pairs is None else pairs
@@ -105,6 +111,8 @@ def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None) -> tuple[np.nd
     stats = {"nonmanifold_edges": pairs.nonmanifold, "nonmanifold_matched": pairs.matched,
              "inconsistent_edges": int((~opposite).sum()),
              "boundary_edges": pairs.boundary}
+    if cut is not None:
+        opposite &= ~cut
     a, b = a[opposite], b[opposite]
     # half-edge h = 3 f + c runs corner c -> c+1; its twin runs d+1 -> d: join (f,c)~(g,d+1), (f,c+1)~(g,d)
     fa, ca = np.divmod(a, 3)
@@ -115,6 +123,52 @@ def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None) -> tuple[np.nd
     _, group = connected_components(graph, directed=False)
     _, corner_vertex = np.unique(group, return_inverse=True)
     return corner_vertex.reshape(Fw, 3), stats
+
+
+def doubled_edges(corner_vertex: np.ndarray) -> np.ndarray:
+    """(D, 2) working-vertex pairs joined by more than one working edge: used by more than two
+    faces of ``corner_vertex`` (the working faces)."""
+    he = np.stack([corner_vertex, np.roll(corner_vertex, -1, 1)], -1).reshape(-1, 2)
+    n = int(corner_vertex.max()) + 1
+    keys, counts = np.unique(he.min(1) * n + he.max(1), return_counts=True)
+    d = keys[counts > 2]
+    return np.stack([d // n, d % n], 1)
+
+
+def fold_cuts(wf: np.ndarray, corner_vertex: np.ndarray, pairs: EdgePairs, vertices: np.ndarray) -> np.ndarray:
+    """(P,) bool over ``pairs.a``: the *folds* to cut so that no two working edges join the
+    same two working vertices (:func:`doubled_edges`).
+
+    A fold is an edge of a face and its own copy wound the other way (the same welded
+    vertices): the rim of a double-sided open surface, where its front and back meet. The two
+    sides stay joined there (a leaf card unfolds like a book, one island), but a chord of the
+    sheet (an inner edge between two rim vertices: a quad card's diagonal, a grid's corner
+    triangle) then exists twice, front and back, between the same two working vertices. The
+    working mesh is no longer a simplicial mesh, and everything that reads edges from vertex
+    ids (pinch splits, disk cuts, SLIM) sees three or four faces on it: a region holding both
+    copies fell apart there (a double-sided grid: four one-face islands at its corners, and
+    merge trials that could not join them, 19.5 s of its 25.8 s unwrap). Cutting the folds at
+    one end of the chord gives that vertex a front and a back copy, and the chord's two copies
+    distinct ends; the end whose folds are shorter is cut (less seam)."""
+    cut = np.zeros(len(pairs.a), bool)
+    doubled = doubled_edges(corner_vertex)
+    if not len(doubled):
+        return cut
+    he = pairs.half_edges
+    fa, fb = pairs.a // 3, pairs.b // 3
+    twin = (np.sort(wf[fa], 1) == np.sort(wf[fb], 1)).all(1)
+    ca = pairs.a % 3
+    ends = np.stack([corner_vertex[fa, ca], corner_vertex[fa, (ca + 1) % 3]], 1)  # working ids of each pair's edge
+    length = np.linalg.norm(vertices[he[pairs.a, 0]] - vertices[he[pairs.a, 1]], axis=1)
+    fold_at = np.zeros(int(corner_vertex.max()) + 1)
+    for k in range(2):
+        np.add.at(fold_at, ends[twin, k], length[twin])
+    for u, v in doubled:
+        w = u if (fold_at[u], u) <= (fold_at[v], v) else v
+        if fold_at[w] == 0:
+            w = v if w == u else u
+        cut |= twin & (ends == w).any(1)
+    return cut
 
 
 def face_components(faces: np.ndarray) -> np.ndarray:
@@ -154,6 +208,16 @@ def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
         # surface stays two surfaces, not one island per face)
         pairs = edge_pairs(wf, face_normals(vertices, fk))
     corner_vertex_w, stats = corner_groups(wf, pairs)
+    wpos = np.zeros((int(wf.max()) + 1, 3))
+    wpos[wf.ravel()] = vertices[fk.ravel()]
+    cut = np.zeros(len(pairs.a), bool)
+    for _ in range(3):  # a cut that leaves a chord doubled (both ends shared) is followed by another
+        more = fold_cuts(wf, corner_vertex_w, pairs, wpos) & ~cut
+        if not more.any():
+            break
+        cut |= more
+        corner_vertex_w, stats = corner_groups(wf, pairs, cut)
+    stats["folds_cut"] = int(cut.sum())
     # position of a working vertex: the input position of (any) one of its corners
     pos = np.zeros((int(corner_vertex_w.max()) + 1, 3))
     pos[corner_vertex_w.ravel()] = vertices[fk.ravel()]
