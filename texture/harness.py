@@ -36,7 +36,8 @@ Summary keys (example values in docs/texture.md):
                        double-sided reference (each face beside a copy wound the other way)
                        the vertex normals cancel, and only the windings show both ways.
 ``orientation_undecided_area_percent`` the 3D area of those faces.
-``uv_overlap_percent`` texels of ``resolution^2`` covered by >= 2 faces, percent of
+``uv_overlap_percent`` texels of ``resolution^2`` covered by >= 2 faces (a face repeated
+                       exactly, the same 3D points and UVs, counts once), percent of
                        covered texels (UV bounding box mapped to the square if UVs leave
                        [0,1]^2).
 ``utilization``        covered fraction of [0,1]^2 (texel centres, ``resolution^2``).
@@ -198,12 +199,26 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> tuple[
     return against & ~undecided, undecided
 
 
-def _seam_length(mesh: UVMesh, weld: np.ndarray, surface_boundary: np.ndarray | None) -> float:
-    """0.5 * sum of 3D lengths of UV-boundary half-edges not on the surface's open boundary."""
-    he = _islands.half_edges(mesh.faces)
-    uv_keys = _islands.edge_keys(_islands.uv_point_ids(mesh.uv, weld), mesh.faces)
+def distinct_faces(mesh: UVMesh, weld: np.ndarray) -> np.ndarray:
+    """Indices of the faces but exact repeats: a face on the same 3D points (``weld``) with
+    the same UVs at them as an earlier face (an input that wrote a face twice, unwrapped with
+    one UV triangle for both) is the same piece of surface on the same texels, so it is
+    counted once where faces are counted against each other (seams, overlap)."""
+    pid = np.sort(_islands.uv_point_ids(mesh.uv, weld)[mesh.faces], 1)
+    order = np.lexsort(pid.T[::-1])  # stable: of equal faces the earliest comes first
+    ranked = pid[order]
+    first = np.r_[True, (ranked[1:] != ranked[:-1]).any(1)]
+    return np.sort(order[first])
+
+
+def _seam_length(mesh: UVMesh, weld: np.ndarray, surface_boundary: np.ndarray | None, distinct: np.ndarray) -> float:
+    """0.5 * sum of 3D lengths of UV-boundary half-edges not on the surface's open boundary
+    (over the ``distinct`` faces: :func:`distinct_faces`)."""
+    faces = mesh.faces[distinct]
+    he = _islands.half_edges(faces)
+    uv_keys = _islands.edge_keys(_islands.uv_point_ids(mesh.uv, weld), faces)
     uv_open = _islands.edge_use_counts(uv_keys) == 1
-    open3d = _islands.edge_use_counts(_islands.edge_keys(weld, mesh.faces)) == 1
+    open3d = _islands.edge_use_counts(_islands.edge_keys(weld, faces)) == 1
     p = mesh.vertices[he]
     length = np.linalg.norm(p[:, 1] - p[:, 0], axis=1)
     on_surface_boundary = open3d.copy()
@@ -270,7 +285,8 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     folded, undecided = _folded(m, geom, island, weld, projector)
     total_area = float(geom.area_3d.sum())
     tex_uv, inside = _texture_space(m.uv)
-    count = coverage_count(tex_uv[m.faces], resolution, resolution)
+    distinct = distinct_faces(m, weld)
+    count = coverage_count(tex_uv[m.faces[distinct]], resolution, resolution)
     covered = int((count > 0).sum())
     rho, cv, p9010 = _texel_density(geom)
     charts = len(np.unique(island[np.abs(geom.uv_area) > 0]))  # islands that cover some UV area
@@ -279,7 +295,7 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
         "vertices": int(len(m.vertices)),
         "charts": charts,
         "point_charts": int(island.max() + 1) - charts,
-        "seam_length": _seam_length(m, weld, boundary) / np.sqrt(total_area),
+        "seam_length": _seam_length(m, weld, boundary, distinct) / np.sqrt(total_area),
         **_aggregates(geom),
         "flipped_faces": int(flipped.sum()),
         "flipped_area_percent": 100.0 * float(geom.area_3d[flipped].sum()) / total_area,

@@ -25,6 +25,10 @@ oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered
   two sides stay joined, except at one end of a chord (an inner edge between two rim
   vertices), where the rim is cut so that the chord's front and back copies do not join the
   same two working vertices (:func:`fold_cuts`);
+- a face that repeats an earlier face (the same welded points, wound the same way: an
+  export that wrote some faces twice) is left out of the working mesh and takes its
+  original's UVs: the same surface gets the same texels (on a copy of its own it would be
+  an island of one face: 200 faces repeated in a 7k-face scan made 194 islands of 3);
 - degenerate faces (a repeated vertex after welding, or zero 3D area) are left out of
   the working mesh (``work_face == -1``); :mod:`texture.unwrap` gives them the UVs of
   their corners in a neighbouring island, so they still get valid UVs.
@@ -61,12 +65,14 @@ class PreparedMesh:
         work_vertices: (W, 3) positions of the working vertices.
         work_faces: (Fw, 3) working faces: manifold, consistently oriented (a turned face,
             ``turned``, has its input face's corners 1 and 2 swapped).
-        work_face: (F,) working face of each input face, -1 for a degenerate face.
+        work_face: (F,) working face of each input face, -1 for a degenerate face or a copy.
         input_face: (Fw,) input face of each working face.
         corner_vertex: (F, 3) working vertex of each input face corner (-1 on degenerate faces).
         component: (Fw,) connected component of each working face (ids 0..C-1).
         turned: (Fw,) bool, working faces wound against their input face.
         stats: counts of what was welded, turned, cut and split.
+        copy_of: (F,) for a face that repeats an earlier one (:func:`copied_faces`) that
+            face, else -1.
     """
 
     vertices: np.ndarray
@@ -79,6 +85,7 @@ class PreparedMesh:
     component: np.ndarray
     turned: np.ndarray
     stats: dict
+    copy_of: np.ndarray
 
     @property
     def n_components(self) -> int:
@@ -92,6 +99,20 @@ def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, weld: np.ndarray) 
     used = vertices[np.unique(faces)]
     diag = float(np.linalg.norm(used.max(0) - used.min(0))) or 1.0
     return repeated | (triangle_areas(vertices, faces) <= DEGENERATE_AREA * diag * diag)
+
+
+def copied_faces(wf: np.ndarray) -> np.ndarray:
+    """(F,) for each face of ``wf`` (welded ids) the first earlier face on the same three
+    points wound the same way (its corners in the same cyclic order), -1 for the rest. A face
+    on the same points wound the other way is not a copy: it is the back of a double-sided
+    surface."""
+    if not len(wf):
+        return np.zeros(0, np.int64)
+    rot = np.argmin(wf, axis=1)  # each face's corners from its lowest point on: cyclic order kept
+    canon = np.take_along_axis(wf, (rot[:, None] + np.arange(3)) % 3, 1)
+    _, first, inv = np.unique(canon, axis=0, return_index=True, return_inverse=True)
+    orig = first[inv.reshape(-1)]
+    return np.where(orig == np.arange(len(wf)), -1, orig)
 
 
 def corner_groups(wf: np.ndarray, pairs: EdgePairs | None = None,
@@ -193,7 +214,11 @@ def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
     vertices, faces = validate_mesh(vertices, faces, name)
     weld = weld_ids(vertices, WELD_TOL)
     degenerate = degenerate_faces(vertices, faces, weld)
-    keep = np.flatnonzero(~degenerate)
+    copy_of = np.full(len(faces), -1, np.int64)
+    live = np.flatnonzero(~degenerate)
+    orig = copied_faces(weld[faces[live]])
+    copy_of[live[orig >= 0]] = live[orig[orig >= 0]]
+    keep = np.flatnonzero(~degenerate & (copy_of < 0))
     if len(keep) == 0:
         raise InputError(f"{name}: every face is degenerate (zero area or a repeated vertex)")
     wf = weld[faces[keep]]
@@ -229,8 +254,9 @@ def prepare_mesh(vertices, faces, name: str = "mesh") -> PreparedMesh:
     n_points = len(np.unique(weld[faces[keep]]))
     stats.update({"input_vertices": int(len(vertices)), "input_faces": int(len(faces)),
                   "welded_vertices": int(len(np.unique(faces)) - len(np.unique(weld[faces]))),
-                  "degenerate_faces": int(degenerate.sum()),
+                  "degenerate_faces": int(degenerate.sum()), "copied_faces": int((copy_of >= 0).sum()),
                   "split_vertices": int(len(pos) - n_points), "turned_faces": int(turned.sum())})
     comp = face_components(corner_vertex_w)
     stats["components"] = int(comp.max()) + 1
-    return PreparedMesh(vertices, faces, pos, corner_vertex_w, work_face, keep, corner_vertex, comp, turned, stats)
+    return PreparedMesh(vertices, faces, pos, corner_vertex_w, work_face, keep, corner_vertex, comp, turned, stats,
+                        copy_of)

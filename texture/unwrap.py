@@ -38,7 +38,8 @@ that its texture does not read mirrored where its neighbours' reads right); outp
 vertex, island vertex) pair, so input vertices are duplicated only along seams (and where
 the input was non-manifold). A degenerate face (zero area or a repeated index) gets three
 vertices of its own (its corners' 3D positions) on one UV point of a neighbouring island:
-a zero-area UV triangle inside that island.
+a zero-area UV triangle inside that island. A face that repeats an earlier one
+(``prepare``'s ``copied_faces``) gets that face's UV triangle.
 """
 from __future__ import annotations
 
@@ -188,7 +189,7 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
     welds, first_at = np.unique(node_weld, return_index=True)
     first_node[welds[welds >= 0]] = first_at[welds >= 0]
     isolated = 0
-    degenerate = np.flatnonzero(prep.work_face < 0)
+    degenerate = np.flatnonzero((prep.work_face < 0) & (prep.copy_of < 0))
     for f in degenerate:
         nodes = first_node[weld[prep.faces[f]]]
         first = next((int(n) for n in nodes if n >= 0), None)
@@ -206,7 +207,15 @@ def _output_mesh(prep, islands: list[Island], packed_uv: np.ndarray,
     # corner order: corners 1 and 2 swapped), so no island holds both windings
     fr = prep.faces.copy()
     turned = prep.input_face[prep.turned]
+    copies = np.flatnonzero(prep.copy_of >= 0)
+    orig = prep.copy_of[copies]
+    turned = np.r_[turned, copies[np.isin(orig, turned)]]  # a copy is wound as its original is written
     fr[turned] = fr[turned][:, [0, 2, 1]]
+    # a copy's corners take its original's nodes (the corner on the same welded point): the
+    # same UV triangle, in the same island
+    same = weld[fr[copies]][:, :, None] == weld[fr[orig]][:, None, :]
+    corner_node[copies] = np.take_along_axis(corner_node[orig], same.argmax(2), 1)
+    face_island[copies] = face_island[orig]
     corner_key = np.stack([fr.ravel(), corner_node.ravel()], 1)
     rep = np.zeros((F, 3), np.int64)
     rep[:, 1] = fr[:, 1] == fr[:, 0]
