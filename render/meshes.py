@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +76,53 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     n = acc[weld]
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     return n / np.where(norm > 0, norm, 1.0)
+
+
+def reversed_twins(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) bool: faces with a copy wound the other way on the same three points (a
+    double-sided surface, as some exporters write one)."""
+    _, weld = np.unique(np.round(np.asarray(vertices, np.float64), 9), axis=0, return_inverse=True)
+    w = weld.reshape(-1)[faces]
+    rot = np.argmin(w, axis=1)
+    canon = np.take_along_axis(w, (rot[:, None] + np.arange(3)) % 3, 1)  # lowest point first, order kept
+    ccw = (canon[:, 1] < canon[:, 2]).astype(float)  # which of the two windings
+    _, group = np.unique(np.sort(w, 1), axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    up, n = np.bincount(group, weights=ccw), np.bincount(group)
+    return (up[group] > 0) & (up[group] < n[group])
+
+
+def double_sided_render_mesh(mesh: UVMesh, twins: np.ndarray, gap: float) -> tuple[UVMesh, np.ndarray]:
+    """(every face on three vertices of its own, (3F, 3) normals) for rendering a mesh whose
+    ``twins`` (:func:`reversed_twins`) lie on each other.
+
+    The two sides of a double-sided surface occupy the same place: a ray hits either, so a
+    render showed the far side's texture (and, with normals averaged across both sides,
+    which cancel, black) in a random half of the pixels. Each twin face is moved ``gap``
+    along its own normal, so the side that faces the camera is the nearer one, and each
+    corner's normal is averaged only over the faces on its side at that point (those whose
+    normals agree with the corner's face), not across the two sides."""
+    v = np.asarray(mesh.vertices, np.float64)
+    f = mesh.faces
+    flat = unshare(mesh)
+    fn = face_normals(v, f, unit=False)
+    unit = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    _, weld = np.unique(np.round(v, 9), axis=0, return_inverse=True)
+    point = weld.reshape(-1)[f].reshape(-1)  # (3F,) point of each corner
+    corner_face = np.repeat(np.arange(len(f)), 3)
+    # a corner's normal: the face normals (area-weighted) at its point that agree with its own
+    # face's, summed over the faces at that point: one pass per face of the largest fan
+    order = np.argsort(point, kind="stable")
+    starts = np.r_[0, np.flatnonzero(np.diff(point[order])) + 1]
+    normals = np.zeros((len(point), 3))
+    for s, e in zip(starts, np.r_[starts[1:], len(order)]):
+        c = order[s:e]
+        n_at = fn[corner_face[c]]
+        agree = (unit[corner_face[c]] @ unit[corner_face[c]].T) > 0
+        normals[c] = agree.astype(float) @ n_at
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    shift = np.repeat(np.where(twins[:, None], gap * unit, 0.0), 3, axis=0)
+    return dataclass_replace(flat, vertices=flat.vertices + shift), normals
 
 
 def unshare(mesh: UVMesh) -> UVMesh:

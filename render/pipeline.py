@@ -31,7 +31,15 @@ from mnacore.frame import far_from_origin
 from render import heatmap as H
 from render.backend import VariantChoice, choose_variant, import_mitsuba
 from render.images import read_image, to_display, write_exr, write_png
-from render.meshes import UVMesh, load_uv_mesh, unshare, vertex_normals, write_ply
+from render.meshes import (
+    UVMesh,
+    double_sided_render_mesh,
+    load_uv_mesh,
+    reversed_twins,
+    unshare,
+    vertex_normals,
+    write_ply,
+)
 from render.mitsuba_scene import (
     material_bitmap,
     material_plain,
@@ -166,8 +174,8 @@ def check_mesh(mesh: UVMesh, opts: RenderOptions) -> None:
 def _texture_files(mesh: UVMesh, opts: RenderOptions, preset: Preset, framing: Framing,
                    scene_dir: Path) -> tuple[dict, float | None]:
     """Write the mesh PLY (+ texture PNG) into ``scene_dir``; return (material, checker frequency)."""
-    normals = vertex_normals(mesh.vertices, mesh.faces)
-    write_ply(scene_dir / "mesh.ply", mesh.vertices, mesh.faces, mesh.uv, normals)
+    render = _render_geometry(mesh, framing)
+    write_ply(scene_dir / "mesh.ply", render[0].vertices, render[0].faces, render[0].uv, render[1])
     mat = preset.material
     if opts.texture == "none":
         return material_plain(mat.base_color), None
@@ -186,15 +194,32 @@ def _texture_files(mesh: UVMesh, opts: RenderOptions, preset: Preset, framing: F
     return material_bitmap("texture.png"), freq
 
 
+#: how far each side of a double-sided surface is moved out along its own normal for the
+#: render, in bounding-sphere radii: a twentieth of a pixel at 1024 pixels across the sphere
+#: (:func:`render.meshes.double_sided_render_mesh`)
+TWIN_GAP = 1e-4
+
+
+def _render_geometry(mesh: UVMesh, framing: Framing) -> tuple[UVMesh, np.ndarray]:
+    """(the mesh to write, its normals per vertex): as it is with smooth vertex normals, or,
+    where faces lie on reversed copies of themselves, the sides moved apart and each corner
+    normal of its own side (:func:`render.meshes.double_sided_render_mesh`). Either way face
+    ``i`` of the result is face ``i`` of the mesh."""
+    twins = reversed_twins(mesh.vertices, mesh.faces)
+    if not twins.any():
+        return mesh, vertex_normals(mesh.vertices, mesh.faces)
+    return double_sided_render_mesh(mesh, twins, TWIN_GAP * framing.sphere.radius)
+
+
 def _heat_files(mesh: UVMesh, kind: str, values: np.ndarray, scale: H.HeatRange | None,
-                preset: Preset, scene_dir: Path) -> None:
+                preset: Preset, scene_dir: Path, framing: Framing) -> None:
     from render.images import srgb_to_linear
 
     colors = (H.island_colors(values, preset.heatmap.chart_cmap) if kind == "charts"
               else H.distortion_colors(values, scale))
-    flat = unshare(mesh)
-    normals = vertex_normals(mesh.vertices, mesh.faces)[mesh.faces.reshape(-1)]
-    write_ply(scene_dir / f"heat_{kind}.ply", flat.vertices, flat.faces, None, normals,
+    render, normals = _render_geometry(mesh, framing)
+    flat = unshare(render)
+    write_ply(scene_dir / f"heat_{kind}.ply", flat.vertices, flat.faces, None, normals[render.faces.reshape(-1)],
               srgb_to_linear(np.repeat(colors, 3, axis=0)))
 
 
@@ -240,7 +265,7 @@ def render_mesh(mesh: UVMesh | str | Path, out_dir: str | Path, opts: RenderOpti
     material, result.checker_frequency = _texture_files(mesh, opts, preset, framing, scene_dir)
     jobs = [("", "mesh.ply", material)]
     for k in opts.heatmaps:
-        _heat_files(mesh, k, heat_values[k], heat_ranges.get(k), preset, scene_dir)
+        _heat_files(mesh, k, heat_values[k], heat_ranges.get(k), preset, scene_dir, framing)
         jobs.append((f"heat_{k}_", f"heat_{k}.ply", material_vertex_colors()))
         if k != "charts":
             H.colorbar_png(out_dir / f"colorbar_{k}.png", heat_ranges[k], f"{k} distortion (per face)")

@@ -176,3 +176,34 @@ def test_a_mesh_in_map_coordinates_renders_as_at_the_origin(variant, torus, tmp_
     a = read_image(render_mesh(torus, tmp_path / "near", opts).images["front"].with_suffix(".exr"))
     b = read_image(render_mesh(far, tmp_path / "far", opts).images["front"].with_suffix(".exr"))
     _same_render(a, b, "front", exact=False)
+
+
+def test_a_double_sided_surface_renders_the_side_that_faces_the_camera(fast_variant, meshes, tmp_path):
+    """A square and a copy of it wound the other way on the same vertices, the copy's checker
+    half a square out of phase. Both sides lie in one plane, so a ray hit either and the
+    render mixed the two checkers (and, with the two sides' normals averaged to nothing,
+    black). The sides are now moved apart by a twentieth of a pixel along their own
+    normals: the render equals that of the side that faces the camera alone."""
+    v, f, uv = meshes.flat_square(side=2.0, n=4)
+    plain = load_preset("plain")
+    preset = dataclasses.replace(plain, material=dataclasses.replace(
+        plain.material, checker_squares=4.0, checker_colors=((1.0, 1.0, 1.0), (0.0, 0.0, 0.0))))
+    opts = RenderOptions(views=("front",), spp=8, res=64, preset=preset, progress=False, variant=fast_variant)
+
+    def lum(mesh, name):
+        render_mesh(mesh, tmp_path / name, opts)
+        img = read_image(tmp_path / name / "front.exr")
+        return img[..., :3].mean(-1)
+
+    freq = render_mesh(UVMesh(v, f, uv, name="a"), tmp_path / "probe", opts).checker_frequency
+    back_uv = uv + [0.5 / freq, 0.0]  # half a checker square: the colours swap
+    front = lum(UVMesh(v, f, uv, name="front"), "front")
+    back = lum(UVMesh(v, f[:, ::-1], back_uv, name="back"), "back")
+    both = lum(UVMesh(np.vstack([v, v]), np.vstack([f, f[:, ::-1] + len(v)]), np.vstack([uv, back_uv]), name="both"),
+               "both")
+    # the two sides alone differ (the swapped checker), so the test can tell them apart
+    sheet = np.abs(front - back) > 0.1
+    assert sheet.mean() > 0.1  # the square covers about a sixth of the frame
+    near = min(np.abs(both - front)[sheet].mean(), np.abs(both - back)[sheet].mean())
+    far = max(np.abs(both - front)[sheet].mean(), np.abs(both - back)[sheet].mean())
+    assert near < 0.05 and far > 0.3, (near, far)
