@@ -135,6 +135,10 @@ def run_unwrap(args: argparse.Namespace) -> int:
     if turned:
         print(f"{turned} of {Path(args.mesh).name}'s faces were wound against their neighbours: mesh.obj and mesh.glb "
               "hold them wound like their neighbours (the same triangles, corners 2 and 3 swapped)")
+    copied = doc["prepare"].get("copied_faces", 0)
+    if copied:
+        print(f"{copied} of {Path(args.mesh).name}'s faces repeat an earlier face (the same corners, wound the same "
+              "way): each has its original's texture coordinates")
     fallback = doc["assignment"]["fallback_area_fraction"]
     if fit_info["fit"] == "reused" and fallback > REUSED_FALLBACK_WARNING:
         # a fit of this mesh reaches every part it sampled: most of the area out of reach means

@@ -338,3 +338,30 @@ def test_same_triangles_finds_each_face_among_regrouped_and_turned_source_faces(
     np.testing.assert_array_equal(match, want)
     ok = match >= 0
     np.testing.assert_array_equal(src_f[match[ok]][np.arange(ok.sum())[:, None], perm[ok]], out_f[ok])
+
+
+def test_faces_written_twice_share_their_originals_uvs_and_it_is_said(tmp_path, capsys):
+    """The sphere with 30 of its faces written again (corners rotated): the summary says how
+    many; mesh.obj and mesh.glb keep every face, each copy on its original's UV triangle, and
+    measure alike (no overlap: an exact repeat counts once); the GLB passes the validator."""
+    run = write_sphere_run(tmp_path / "run", G=32)
+    sphere = trimesh.load(run / "input.ply", process=False)
+    faces = np.asarray(sphere.faces)
+    pick = np.random.default_rng(2).choice(len(faces), 30, replace=False)
+    both = np.vstack([faces, np.roll(faces[pick], 1, axis=1)])
+    trimesh.Trimesh(sphere.vertices, both, process=False).export(tmp_path / "twice.ply")
+    args = ["--run", str(run), "--no-progress", *SMALL]
+    assert main(["unwrap", str(tmp_path / "twice.ply"), "-o", str(tmp_path / "out"), *args]) == 0
+    assert "30 of twice.ply's faces repeat an earlier face" in capsys.readouterr().out
+    sums = []
+    for name in ("mesh.obj", "mesh.glb"):
+        back = read_back(tmp_path / "out" / name)
+        assert len(back.faces) == len(both)
+        for k, o in enumerate(pick):  # copy k: its original's UV at the corner on the same point
+            at = {tuple(np.round(back.vertices[v], 6)): back.uv[v] for v in back.faces[o]}
+            for v in back.faces[len(faces) + k]:
+                np.testing.assert_allclose(back.uv[v], at[tuple(np.round(back.vertices[v], 6))], atol=1e-6)
+        sums.append(measure(back).summary)
+    assert sums[0]["uv_overlap_percent"] == 0.0 and sums[0]["charts"] == sums[1]["charts"]
+    assert sums[0]["seam_length"] == pytest.approx(sums[1]["seam_length"], rel=1e-6)
+    assert_glb_validates(tmp_path / "out" / "mesh.glb")
