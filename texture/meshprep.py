@@ -4,7 +4,8 @@
 which every non-degenerate input face is a face of an edge-manifold, consistently
 oriented mesh, plus the maps back to the input. Nothing is deleted or re-ordered:
 
-- duplicated vertices (same position within ``WELD_TOL`` of the bounding-box diagonal)
+- duplicated vertices (same position within ``mnacore.uvmesh.WELD_TOL`` of the bounding-box
+  diagonal)
   are welded, so a mesh saved with split vertices unwraps as one surface;
 - faces wound against their neighbours are turned, in the working mesh only, to the
   winding of most of their patch's area (:func:`mnacore.triangles.consistent_winding`): a surface whose
@@ -47,10 +48,8 @@ from scipy.sparse.csgraph import connected_components
 
 from mnacore.errors import InputError
 from mnacore.triangles import EdgePairs, consistent_winding, edge_pairs, face_normals, triangle_areas
-from mnacore.uvmesh import validate_mesh, weld_ids
+from mnacore.uvmesh import WELD_TOL, validate_mesh, weld_ids
 
-#: relative tolerance (of the bounding-box diagonal) for welding duplicated vertices.
-WELD_TOL = 1e-9
 #: a face with 3D area below this times the squared diagonal is degenerate.
 DEGENERATE_AREA = 1e-14
 
