@@ -13,7 +13,9 @@ so texel ``(row r, col c)`` of an ``H x W`` image has its centre at
 """
 from __future__ import annotations
 
+import io
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,8 +130,11 @@ def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
     for a missing file, a wrong format (the first bytes), no faces or NaN / overflowing positions.
 
     ``keep_vertex_order``: an OBJ keeps its own ``v`` list and order (trimesh otherwise makes
-    one vertex per distinct ``v/vt`` pair, which is what UV readers want); its texture
-    visuals are then not read.
+    one vertex per distinct ``v/vt`` pair, which is what UV readers want), and its faces
+    their order in the file; its texture visuals are then not read. trimesh splits an OBJ
+    at every ``usemtl`` and joins the pieces again grouped (a sphere whose faces alternate
+    between two materials every ten came back with its faces reordered, and the unwrap's
+    face ``i`` was not the file's), so those lines are left out of what it reads here.
     """
     import trimesh
 
@@ -137,9 +142,14 @@ def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
     if not path.is_file():
         raise InputError(f"mesh file not found: {path}")
     check_file_format(path)
-    kw = {"maintain_order": True} if keep_vertex_order and path.suffix.lower() == ".obj" else {}
+    source, kw = path, {}
+    if keep_vertex_order and path.suffix.lower() == ".obj":
+        text = path.read_text(errors="replace")
+        if re.search(r"^\s*usemtl\b", text, re.MULTILINE):
+            source = io.StringIO(re.sub(r"^\s*usemtl\b.*$", "", text, flags=re.MULTILINE))
+        kw = {"maintain_order": True, "file_type": "obj"}
     try:
-        mesh = trimesh.load(path, force="mesh", process=False, **kw)
+        mesh = trimesh.load(source, force="mesh", process=False, **kw)
     except Exception as exc:  # trimesh raises many types on unreadable files
         raise InputError(read_failure(path, exc)) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:

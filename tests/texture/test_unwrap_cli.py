@@ -365,3 +365,26 @@ def test_faces_written_twice_share_their_originals_uvs_and_it_is_said(tmp_path, 
     assert sums[0]["uv_overlap_percent"] == 0.0 and sums[0]["charts"] == sums[1]["charts"]
     assert sums[0]["seam_length"] == pytest.approx(sums[1]["seam_length"], rel=1e-6)
     assert_glb_validates(tmp_path / "out" / "mesh.glb")
+
+
+def test_an_obj_whose_faces_change_material_keeps_its_face_order(tmp_path, capsys):
+    """The sphere as an OBJ whose faces switch between two materials every ten faces (no
+    ``vt``): trimesh groups an OBJ's faces by material, so the unwrap's face ``i`` was another
+    face of the file. Now mesh.obj and mesh.glb hold the file's faces in its order, and no
+    texture coordinates are said to be replaced (the file has none)."""
+    run = write_sphere_run(tmp_path / "run", G=32)
+    sphere = trimesh.load(run / "input.ply", process=False)
+    v, f = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+    lines = ["mtllib two.mtl"] + [f"v {a:.9g} {b:.9g} {c:.9g}" for a, b, c in v]
+    for i, t in enumerate(f):
+        if i % 10 == 0:
+            lines.append("usemtl " + ("red" if i // 10 % 2 == 0 else "blue"))
+        lines.append("f " + " ".join(str(k + 1) for k in t))
+    (tmp_path / "two.obj").write_text("\n".join(lines) + "\n")
+    (tmp_path / "two.mtl").write_text("newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n")
+    args = ["--run", str(run), "--no-progress", *SMALL]
+    assert main(["unwrap", str(tmp_path / "two.obj"), "-o", str(tmp_path / "out"), *args]) == 0
+    assert "were replaced" not in capsys.readouterr().out
+    for name in ("mesh.obj", "mesh.glb"):
+        back = read_back(tmp_path / "out" / name)
+        np.testing.assert_allclose(back.vertices[back.faces], v[f], atol=1e-6)
