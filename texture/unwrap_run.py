@@ -1,7 +1,8 @@
 """``mna unwrap`` after the fit: the input mesh file + a run's charts -> ``OUT/mesh.*`` + ``OUT/unwrap.json``.
 
 ``load_unwrap_input`` reads the user's mesh with its own vertex list (an OBJ's ``v``
-lines in file order, not split by its texture coordinates) and validates it before
+lines in file order, not split by its texture coordinates; its faces in file order, not
+grouped by material: :func:`mnacore.uvmesh.read_mesh`) and validates it before
 anything is written. ``unwrap_to_folder`` unwraps it with the charts of ``RUN/charts.npz``
 (:func:`texture.unwrap.unwrap_mesh`), writes the textured OBJ/MTL/PNG/GLB through
 :func:`texture.export.export_textured`, measures the result with the one harness
