@@ -80,16 +80,14 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def reversed_twins(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F,) bool: faces with a copy wound the other way on the same three points (a
-    double-sided surface, as some exporters write one)."""
-    _, weld = np.unique(np.round(np.asarray(vertices, np.float64), 9), axis=0, return_inverse=True)
-    w = weld.reshape(-1)[faces]
-    rot = np.argmin(w, axis=1)
-    canon = np.take_along_axis(w, (rot[:, None] + np.arange(3)) % 3, 1)  # lowest point first, order kept
-    ccw = (canon[:, 1] < canon[:, 2]).astype(float)  # which of the two windings
-    _, group = np.unique(np.sort(w, 1), axis=0, return_inverse=True)
-    group = group.reshape(-1)
-    up, n = np.bincount(group, weights=ccw), np.bincount(group)
-    return (up[group] > 0) & (up[group] < n[group])
+    double-sided surface, as some exporters write one): a face whose reversal repeats one of
+    the faces (:func:`texture.meshprep.copied_faces` over the faces, then them reversed)."""
+    from mnacore.uvmesh import weld_ids
+    from texture.meshprep import copied_faces
+
+    w = weld_ids(vertices)[faces]
+    first = copied_faces(np.vstack([w, w[:, ::-1]]))[len(w):]
+    return (first >= 0) & (first < len(w))  # the first repeat is a face, not another reversal
 
 
 def double_sided_render_mesh(mesh: UVMesh, twins: np.ndarray, gap: float) -> tuple[UVMesh, np.ndarray]:

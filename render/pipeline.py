@@ -171,11 +171,12 @@ def check_mesh(mesh: UVMesh, opts: RenderOptions) -> None:
             raise ValueError(f"texture file not found: {mesh.texture}")
 
 
-def _texture_files(mesh: UVMesh, opts: RenderOptions, preset: Preset, framing: Framing,
-                   scene_dir: Path) -> tuple[dict, float | None]:
-    """Write the mesh PLY (+ texture PNG) into ``scene_dir``; return (material, checker frequency)."""
-    render = _render_geometry(mesh, framing)
-    write_ply(scene_dir / "mesh.ply", render[0].vertices, render[0].faces, render[0].uv, render[1])
+def _texture_files(mesh: UVMesh, geometry: tuple[UVMesh, np.ndarray], opts: RenderOptions, preset: Preset,
+                   framing: Framing, scene_dir: Path) -> tuple[dict, float | None]:
+    """Write the mesh PLY (``geometry``: :func:`_render_geometry`) + texture PNG into
+    ``scene_dir``; return (material, checker frequency)."""
+    render, normals = geometry
+    write_ply(scene_dir / "mesh.ply", render.vertices, render.faces, render.uv, normals)
     mat = preset.material
     if opts.texture == "none":
         return material_plain(mat.base_color), None
@@ -211,13 +212,13 @@ def _render_geometry(mesh: UVMesh, framing: Framing) -> tuple[UVMesh, np.ndarray
     return double_sided_render_mesh(mesh, twins, TWIN_GAP * framing.sphere.radius)
 
 
-def _heat_files(mesh: UVMesh, kind: str, values: np.ndarray, scale: H.HeatRange | None,
-                preset: Preset, scene_dir: Path, framing: Framing) -> None:
+def _heat_files(geometry: tuple[UVMesh, np.ndarray], kind: str, values: np.ndarray, scale: H.HeatRange | None,
+                preset: Preset, scene_dir: Path) -> None:
     from render.images import srgb_to_linear
 
     colors = (H.island_colors(values, preset.heatmap.chart_cmap) if kind == "charts"
               else H.distortion_colors(values, scale))
-    render, normals = _render_geometry(mesh, framing)
+    render, normals = geometry
     flat = unshare(render)
     write_ply(scene_dir / f"heat_{kind}.ply", flat.vertices, flat.faces, None, normals[render.faces.reshape(-1)],
               srgb_to_linear(np.repeat(colors, 3, axis=0)))
@@ -262,10 +263,11 @@ def render_mesh(mesh: UVMesh | str | Path, out_dir: str | Path, opts: RenderOpti
     out_dir, label = Path(out_dir), label or mesh.name
     scene_dir = out_dir / "scene"
     result = MeshRender(out_dir, label, variant, warnings=warnings, heat_ranges=heat_ranges)
-    material, result.checker_frequency = _texture_files(mesh, opts, preset, framing, scene_dir)
+    geometry = _render_geometry(mesh, framing)  # once: the textured PLY and every heat map's
+    material, result.checker_frequency = _texture_files(mesh, geometry, opts, preset, framing, scene_dir)
     jobs = [("", "mesh.ply", material)]
     for k in opts.heatmaps:
-        _heat_files(mesh, k, heat_values[k], heat_ranges.get(k), preset, scene_dir, framing)
+        _heat_files(geometry, k, heat_values[k], heat_ranges.get(k), preset, scene_dir)
         jobs.append((f"heat_{k}_", f"heat_{k}.ply", material_vertex_colors()))
         if k != "charts":
             H.colorbar_png(out_dir / f"colorbar_{k}.png", heat_ranges[k], f"{k} distortion (per face)")
