@@ -143,10 +143,8 @@ def read_mesh(path: str | os.PathLike, keep_vertex_order: bool = False):
         raise InputError(f"mesh file not found: {path}")
     check_file_format(path)
     source, kw = path, {}
-    if keep_vertex_order and path.suffix.lower() == ".obj":
-        text = path.read_text(errors="replace")
-        if re.search(r"^\s*usemtl\b", text, re.MULTILINE):
-            source = io.StringIO(re.sub(r"^\s*usemtl\b.*$", "", text, flags=re.MULTILINE))
+    if keep_vertex_order and path.suffix.lower() == ".obj":  # read once, without its usemtl lines
+        source = io.StringIO(re.sub(r"^\s*usemtl\b.*$", "", path.read_text(errors="replace"), flags=re.MULTILINE))
         kw = {"maintain_order": True, "file_type": "obj"}
     try:
         mesh = trimesh.load(source, force="mesh", process=False, **kw)

@@ -199,24 +199,26 @@ def _folded(mesh, geom, island, weld, reference: MeshProjector | None) -> tuple[
     return against & ~undecided, undecided
 
 
-def distinct_faces(mesh: UVMesh, weld: np.ndarray) -> np.ndarray:
-    """Indices of the faces but exact repeats: a face on the same 3D points (``weld``) with
-    the same UVs at them as an earlier face (an input that wrote a face twice, unwrapped with
-    one UV triangle for both) is the same piece of surface on the same texels, so it is
-    counted once where faces are counted against each other (seams, overlap)."""
-    pid = np.sort(_islands.uv_point_ids(mesh.uv, weld)[mesh.faces], 1)
+def distinct_faces(faces: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """Indices of the ``faces`` but exact repeats: a face on the same 3D points with the same
+    UVs at them (``point``: :func:`texture.islands.uv_point_ids` with the weld) as an earlier
+    face (an input that wrote a face twice, unwrapped with one UV triangle for both) is the
+    same piece of surface on the same texels, so it is counted once where faces are counted
+    against each other (seams, overlap)."""
+    pid = np.sort(point[faces], 1)
     order = np.lexsort(pid.T[::-1])  # stable: of equal faces the earliest comes first
     ranked = pid[order]
     first = np.r_[True, (ranked[1:] != ranked[:-1]).any(1)]
     return np.sort(order[first])
 
 
-def _seam_length(mesh: UVMesh, weld: np.ndarray, surface_boundary: np.ndarray | None, distinct: np.ndarray) -> float:
+def _seam_length(mesh: UVMesh, weld: np.ndarray, point: np.ndarray, surface_boundary: np.ndarray | None,
+                 distinct: np.ndarray) -> float:
     """0.5 * sum of 3D lengths of UV-boundary half-edges not on the surface's open boundary
-    (over the ``distinct`` faces: :func:`distinct_faces`)."""
+    (over the ``distinct`` faces, :func:`distinct_faces`; ``point``: each vertex's UV point)."""
     faces = mesh.faces[distinct]
     he = _islands.half_edges(faces)
-    uv_keys = _islands.edge_keys(_islands.uv_point_ids(mesh.uv, weld), faces)
+    uv_keys = _islands.edge_keys(point, faces)
     uv_open = _islands.edge_use_counts(uv_keys) == 1
     open3d = _islands.edge_use_counts(_islands.edge_keys(weld, faces)) == 1
     p = mesh.vertices[he]
@@ -285,7 +287,8 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
     folded, undecided = _folded(m, geom, island, weld, projector)
     total_area = float(geom.area_3d.sum())
     tex_uv, inside = _texture_space(m.uv)
-    distinct = distinct_faces(m, weld)
+    point = _islands.uv_point_ids(m.uv, weld)
+    distinct = distinct_faces(m.faces, point)
     count = coverage_count(tex_uv[m.faces[distinct]], resolution, resolution)
     covered = int((count > 0).sum())
     rho, cv, p9010 = _texel_density(geom)
@@ -295,7 +298,7 @@ def measure(mesh: UVMesh, *, reference=None, normalization: Normalization | None
         "vertices": int(len(m.vertices)),
         "charts": charts,
         "point_charts": int(island.max() + 1) - charts,
-        "seam_length": _seam_length(m, weld, boundary, distinct) / np.sqrt(total_area),
+        "seam_length": _seam_length(m, weld, point, boundary, distinct) / np.sqrt(total_area),
         **_aggregates(geom),
         "flipped_faces": int(flipped.sum()),
         "flipped_area_percent": 100.0 * float(geom.area_3d[flipped].sum()) / total_area,
