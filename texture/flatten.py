@@ -275,11 +275,23 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
         return free.uv, {"mode": "free", "iterations": free.iterations, "excess": free.excess_after}
     from dataclasses import replace
 
+    from .scaffold import relax_scaffold
+
+    start = uv
     if free.valid_uv is not None:
         uv = free.valid_uv
     guarded = relax_island(xyz, uv, faces, replace(cfg, pin_rounds=GUARD_PIN_ROUNDS), check_crossings=True)
-    if is_injective(guarded.uv, faces):
-        return guarded.uv, {"mode": "guarded", "iterations": free.iterations + guarded.iterations,
-                            "excess": guarded.excess_after}
+    done = [(guarded.uv, "guarded", guarded.iterations, guarded.excess_after)] if is_injective(guarded.uv, faces) else []
+    if cfg.scaffold_above > 0 and (not done or guarded.excess_after > cfg.scaffold_above):
+        # the guard stalled (its first step from the start already crossed): SLIM with a
+        # scaffold (texture.scaffold) descends from the start to the best map that does
+        # not overlap; the lower of the two is kept
+        scaf = relax_scaffold(xyz, start, faces, cfg.iterations, cfg.min_gain)
+        if scaf is not None:
+            done.append((scaf[0], "scaffold", scaf[1], scaf[2]))
+    if done:
+        best = min(done, key=lambda d: d[3])
+        return best[0], {"mode": best[1], "iterations": free.iterations + guarded.iterations + (best[2] if best[1] == "scaffold" else 0),
+                         "excess": best[3]}
     return uv, {"mode": "start", "iterations": free.iterations + guarded.iterations,
                 "excess": energy_excess(xyz, uv, faces)}

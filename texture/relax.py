@@ -71,6 +71,10 @@ class RelaxConfig:
     :func:`texture.flatten.relax_disk`."""
     slim_max_faces: int = 0
     """Where that fails, disks above this many faces keep their start (0 = SLIM at any size)."""
+    scaffold_above: float = 0.0
+    """Where free SLIM overlaps itself and the guarded run ends above this energy excess (or
+    not at all), :func:`texture.flatten.relax_disk` runs SLIM with a scaffold
+    (:mod:`texture.scaffold`) too and keeps the lower (0 = never)."""
     coarse_excess_limit: float = 0.0
     """A disk flattened in two resolutions whose coarse map's energy excess is above this is
     not refined (it fails as if a step had: :func:`texture.multires.relax_multires`), for a
@@ -225,16 +229,24 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
     """SLIM on one connected island (``uv`` in the isometric scale); see the module docstring.
     ``fixed``: vertices held where they are throughout (soft constraints, as the guard's).
 
-    Returns the input UVs unchanged when they have a degenerate face (infinite energy),
-    when the input border already crosses itself, or when SLIM gives non-finite values.
+    Returns the input UVs unchanged when a face has zero or turned-over UV area (SLIM's
+    Jacobians need every face on one side), when the input border already crosses itself,
+    or when SLIM gives non-finite values. A map of infinite energy excess whose faces all
+    keep some area (a Tutte map of a long, branching disk squeezes its far faces to 1e-11
+    of the mean area: :func:`energy_excess` counts them degenerate) is relaxed: SLIM's
+    first iterations spread them out (excess 506 after one on a 21k-face disk).
     """
     import igl
 
     uv = np.asarray(uv, np.float64)
     before = energy_excess(xyz, uv, faces)
     result = IslandRelaxation(uv, 0, before, before, False)
-    if cfg.iterations <= 0 or not np.isfinite(before) or before < cfg.min_gain or len(faces) < 2:
+    if cfg.iterations <= 0 or before < cfg.min_gain or len(faces) < 2:
         return result
+    if not np.isfinite(before):
+        signed = signed_areas(uv, faces) if np.isfinite(uv).all() else np.zeros(1)
+        if not ((signed > 0).all() or (signed < 0).all()):
+            return result
     border_edges = boundary_edges(faces)
     if check_crossings and len(crossing_edges(faces, uv, border_edges)):
         return result

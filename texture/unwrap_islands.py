@@ -260,7 +260,8 @@ def relax_config(cfg, coarse_excess_limit: float = 0.0) -> RelaxConfig:
     """The SLIM options of an :class:`texture.unwrap.UnwrapConfig` (``coarse_excess_limit``:
     :attr:`texture.relax.RelaxConfig.coarse_excess_limit`)."""
     return RelaxConfig(iterations=cfg.slim_iterations, min_gain=cfg.slim_min_gain, multires_faces=cfg.multires_faces,
-                       slim_max_faces=cfg.slim_max_faces, coarse_excess_limit=coarse_excess_limit)
+                       slim_max_faces=cfg.slim_max_faces, coarse_excess_limit=coarse_excess_limit,
+                       scaffold_above=cfg.slit_target if cfg.scaffold else 0.0)
 
 
 def _relax_job(job, _shared=None):
@@ -275,7 +276,7 @@ def relax_islands(islands: list[Island], cfg, coarse_excess_limit: float = 0.0) 
     order = sorted((i for i in range(len(islands)) if not islands[i].holed), key=lambda i: -len(islands[i].faces))
     jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
     done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
-    st = {"iterations_max": 0, "free": 0, "guarded": 0, "kept_start": 0, "multires": 0}
+    st = {"iterations_max": 0, "free": 0, "guarded": 0, "scaffold": 0, "kept_start": 0, "multires": 0}
     for i, (uv, s) in zip(order, done):
         islands[i].uv = uv
         islands[i].kept_start = s["mode"] == "start"
