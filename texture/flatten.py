@@ -277,21 +277,27 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
 
     from .scaffold import relax_scaffold
 
-    start = uv
-    if free.valid_uv is not None:
-        uv = free.valid_uv
-    guarded = relax_island(xyz, uv, faces, replace(cfg, pin_rounds=GUARD_PIN_ROUNDS), check_crossings=True)
-    done = [(guarded.uv, "guarded", guarded.iterations, guarded.excess_after)] if is_injective(guarded.uv, faces) else []
-    if cfg.scaffold_above > 0 and (not done or guarded.excess_after > cfg.scaffold_above):
-        # the guard stalled (its first step from the start already crossed): SLIM with a
-        # scaffold (texture.scaffold) descends from the start to the best map that does
-        # not overlap; the lower of the two is kept
-        scaf = relax_scaffold(xyz, start, faces, cfg.iterations, cfg.min_gain)
-        if scaf is not None:
-            done.append((scaf[0], "scaffold", scaf[1], scaf[2]))
+    def scaffold():
+        got = relax_scaffold(xyz, uv, faces, cfg.iterations, cfg.min_gain)
+        return [] if got is None else [(got[0], "scaffold", free.iterations + got[1], got[2])]
+
+    done = []
+    first = cfg.scaffold_above > 0 and free.valid_excess >= free.excess_before
+    if first:
+        # no iterate of the free run after the start was crossing-free: the guarded run
+        # would restart from the start map, where its first step crosses and it stalls
+        # (the 46k-face island: 4.67; two marching-cubes disks: 124 and 207, where the
+        # scaffold reached 0.29 and 0.34)
+        done = scaffold()
+    if not done:
+        best_free = uv if free.valid_uv is None else free.valid_uv
+        guarded = relax_island(xyz, best_free, faces, replace(cfg, pin_rounds=GUARD_PIN_ROUNDS), check_crossings=True)
+        if is_injective(guarded.uv, faces):
+            done = [(guarded.uv, "guarded", free.iterations + guarded.iterations, guarded.excess_after)]
+        if cfg.scaffold_above > 0 and not first and (not done or guarded.excess_after > cfg.scaffold_above):
+            done += scaffold()  # the guard stalled later on: the lower of the two is kept
     if done:
         best = min(done, key=lambda d: d[3])
-        return best[0], {"mode": best[1], "iterations": free.iterations + guarded.iterations + (best[2] if best[1] == "scaffold" else 0),
-                         "excess": best[3]}
-    return uv, {"mode": "start", "iterations": free.iterations + guarded.iterations,
-                "excess": energy_excess(xyz, uv, faces)}
+        return best[0], {"mode": best[1], "iterations": best[2], "excess": best[3]}
+    return best_free, {"mode": "start", "iterations": free.iterations + guarded.iterations,
+                       "excess": energy_excess(xyz, best_free, faces)}
