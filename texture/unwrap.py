@@ -97,9 +97,10 @@ class UnwrapConfig:
     """Stop an island's SLIM once an iteration gains less than this in mean energy excess."""
     scaffold: bool = True
     """Where an island's free SLIM overlaps itself and the border-guarded run of
-    :mod:`texture.relax` stalls above ``slit_target``, SLIM with a scaffold
-    (:mod:`texture.scaffold`) finds the best map that does not overlap (merge trials keep
-    the guarded run: see :mod:`texture.merge`)."""
+    :mod:`texture.relax` would restart from the start map, or stalls above ``slit_target``,
+    SLIM with a scaffold (:mod:`texture.scaffold`) finds the best map that does not overlap
+    (:func:`texture.flatten.relax_disk`; merge trials keep the guarded run: see
+    :mod:`texture.merge`)."""
     multires_faces: int = MULTIRES_FACES
     """Islands above this many faces are flattened by :mod:`texture.multires` (SLIM on a
     coarse copy, then ARAP): SLIM's iteration costs 0.26 s at 46k faces and 17-23 s at 418k,
