@@ -105,8 +105,9 @@ def double_sided_render_mesh(mesh: UVMesh, twins: np.ndarray, gap: float) -> tup
     flat = unshare(mesh)
     fn = face_normals(v, f, unit=False)
     unit = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-    _, weld = np.unique(np.round(v, 9), axis=0, return_inverse=True)
-    point = weld.reshape(-1)[f].reshape(-1)  # (3F,) point of each corner
+    from mnacore.uvmesh import weld_ids
+
+    point = weld_ids(v)[f].reshape(-1)  # (3F,) point of each corner (the project's weld)
     corner_face = np.repeat(np.arange(len(f)), 3)
     # a corner's normal: the face normals (area-weighted) at its point that agree with its own
     # face's, summed over the faces at that point: one pass per face of the largest fan

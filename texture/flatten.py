@@ -285,9 +285,8 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     first = cfg.scaffold_above > 0 and free.valid_excess >= free.excess_before
     if first:
         # no iterate of the free run after the start was crossing-free: the guarded run
-        # would restart from the start map, where its first step crosses and it stalls
-        # (the 46k-face island: 4.67; two marching-cubes disks: 124 and 207, where the
-        # scaffold reached 0.29 and 0.34)
+        # would restart from the start map, where its first step crosses and every retry
+        # crosses elsewhere, so it stalls far above the free optimum (docs/unwrap.md, step 6)
         done = scaffold()
     if not done:
         best_free = uv if free.valid_uv is None else free.valid_uv

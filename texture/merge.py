@@ -233,8 +233,10 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     # a union above the face cap gets the two-resolution flattening only: where that fails,
     # full-resolution SLIM would cost about a second per iteration (see the module docstring)
     slim_cap = cfg.merge_max_faces if cfg.slim_max_faces <= 0 else min(cfg.slim_max_faces, cfg.merge_max_faces)
-    # trials keep the guarded run alone (no scaffold, texture.scaffold): with it, unions whose
-    # free map overlapped passed, the bunny merged to one island and packed at 0.511 (0.596)
+    # trials keep the guarded run alone (no scaffold, texture.scaffold): a union whose free
+    # map overlaps itself is a bag or saddle-rimmed region; the scaffold lays it out within
+    # the bound, so it passes, and as one large ragged island it packs worse than its parts
+    # (measured in docs/unwrap.md, step 6)
     trial_cfg = replace(cfg, slim_iterations=min(cfg.slim_iterations, MERGE_ITERATIONS), slim_max_faces=slim_cap,
                         scaffold=False)
     interior = interior_edges(work_faces)

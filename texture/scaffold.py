@@ -26,15 +26,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from mnacore.triangles import signed_areas, triangle_areas
+from mnacore.triangles import triangle_areas
 
 
 def relax_scaffold(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, iterations: int,
                    min_gain: float) -> tuple[np.ndarray, int, float] | None:
-    """(UVs, iterations, energy excess) of SCAF from the injective map ``uv`` (any scale:
-    returned at its scale), stopping where an iteration lowers the excess by less than
-    ``min_gain`` or raises it; None where the start is not injective or SCAF's result is
-    not (it never was here: a check, not a path)."""
+    """(UVs, iterations, energy excess) of SCAF from the injective (counter-clockwise:
+    :func:`texture.relax.is_injective`) map ``uv`` (any scale: returned at its scale),
+    stopping where an iteration lowers the excess by less than ``min_gain`` or raises it;
+    None where the start is not injective or SCAF's result is not (it never was here: a
+    check, not a path)."""
     import igl
     import igl.triangle as tri
 
@@ -43,15 +44,13 @@ def relax_scaffold(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, iteration
     faces = np.asarray(faces, np.int64)
     uv = np.asarray(uv, np.float64)
     area3 = float(triangle_areas(xyz, faces).sum())
-    signed = signed_areas(uv, faces)
     if iterations <= 0 or len(faces) < 2 or area3 <= 0 or not is_injective(uv, faces):
         return None
-    # unit 3D area, the UVs at that scale too; SCAF (like SLIM) fits rotations: a clockwise
-    # island is mirrored in and out
+    # unit 3D area, the UVs at that scale too (an injective start is counter-clockwise, as
+    # SCAF's rotations need)
     s = 1.0 / np.sqrt(area3)
-    mirror = np.array([1.0, -1.0 if signed.sum() < 0 else 1.0])
     x = np.asfortranarray(xyz * s, np.float64)
-    start = uv * mirror * s
+    start = uv * s
     data = tri.SCAFData()
     tri.scaf_precompute(x, np.asfortranarray(faces, np.int32), np.asfortranarray(start),
                         igl.SYMMETRIC_DIRICHLET, np.zeros(0, np.int32), np.zeros((0, 2), order="F"), 0.0, data)
@@ -66,7 +65,7 @@ def relax_scaffold(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, iteration
         current, excess, done = nxt, new, done + 1
         if gain < min_gain:
             break
-    out = current * mirror / s
+    out = current / s
     if not is_injective(out, faces):
         return None
     return out, done, float(excess)
