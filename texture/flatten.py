@@ -230,6 +230,13 @@ def start_map(vertices: np.ndarray, faces: np.ndarray, slim_max_faces: int | Non
 
 #: border-pinning retries of the guarded SLIM run (texture.relax's default is 4).
 GUARD_PIN_ROUNDS = 16
+#: the guarded run is left out (the scaffold runs instead) where the free run's best
+#: crossing-free iterate has more than this times the free result's energy excess. Measured
+#: where both ran: at ratios 1.0-7.2 (11 disks of the 19 benchmark unwraps) the guard ended
+#: within 1.5x of the scaffold and below it on 4; at 44-5e5 (4 disks there, 20 large disks of
+#: a marching-cubes lattice cut through many handles) it stalled at 1.7-4e4 times the
+#: scaffold's result.
+GUARD_START_RATIO = 10.0
 
 
 def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple[np.ndarray, dict]:
@@ -244,7 +251,9 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     crossing-free: pinning then acts only once the map is nearly relaxed, where restarting
     from the Tutte map left a large island stalled (a 46k-face island: 0.068 at the free
     run's first crossing, 4.67 guarded from Tutte); if that fails too, that iterate (or the
-    start). A disk above ``cfg.multires_faces`` faces is first flattened by
+    start). With ``cfg.scaffold_above`` set, SLIM with a scaffold (:mod:`texture.scaffold`)
+    runs after a guarded run that ends above it (the lower map is kept), and instead of the
+    guarded run where that would start far from relaxed (:data:`GUARD_START_RATIO`). A disk above ``cfg.multires_faces`` faces is first flattened by
     :func:`texture.multires.relax_multires` (SLIM's cost per iteration grows faster than the
     face count); the above runs only where that fails, and not above ``cfg.slim_max_faces``
     faces: there the start is kept (mode ``start``), and the unwrap's split stage halves the disk.
@@ -282,11 +291,13 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
         return [] if got is None else [(got[0], "scaffold", free.iterations + got[1], got[2])]
 
     done = []
-    first = cfg.scaffold_above > 0 and free.valid_excess >= free.excess_before
+    # the guarded run continues from the free run's best crossing-free iterate; where that is
+    # the start itself (no later iterate was crossing-free) or still far from relaxed, its
+    # first steps cross and every retry crosses elsewhere, so it stalls far above the free
+    # optimum (docs/unwrap.md, step 6): the scaffold runs instead, the guard only if it fails
+    first = cfg.scaffold_above > 0 and (free.valid_excess >= free.excess_before
+                                        or free.valid_excess > GUARD_START_RATIO * free.excess_after)
     if first:
-        # no iterate of the free run after the start was crossing-free: the guarded run
-        # would restart from the start map, where its first step crosses and every retry
-        # crosses elsewhere, so it stalls far above the free optimum (docs/unwrap.md, step 6)
         done = scaffold()
     if not done:
         best_free = uv if free.valid_uv is None else free.valid_uv

@@ -69,6 +69,38 @@ def test_a_disk_whose_free_optimum_laps_over_relaxes_without_overlap_near_that_o
     assert st["excess"] > 3 * stats["excess"]
 
 
+def test_the_guard_is_left_out_where_its_start_is_far_from_relaxed(monkeypatch):
+    """The guarded run continues from the free run's best crossing-free iterate; where that
+    is more than GUARD_START_RATIO times the free result's excess, the scaffold runs alone."""
+    import texture.relax as R
+    from texture.flatten import GUARD_START_RATIO
+
+    xyz, faces, _ = _slit_egg_crate()
+    uv0 = start_map(xyz, faces)
+    uv0 *= np.sqrt(triangle_areas(xyz, faces).sum() / signed_areas(uv0, faces).sum())
+    uv0 *= np.array([3.0, 1.0 / 3.0])  # stretched (an affine map: still flip-free), excess ~21
+    # a real crossing-free map between it and relaxed: one guarded iteration from it
+    early = relax_island(xyz, uv0, faces, replace(CFG, iterations=1), check_crossings=True)
+    assert is_injective(early.uv, faces)
+    real, guarded_calls = R.relax_island, []
+
+    def spy(x, u, f, cfg, check_crossings=True, fixed=None):
+        got = real(x, u, f, cfg, check_crossings=check_crossings, fixed=fixed)
+        if check_crossings:
+            guarded_calls.append(len(f))
+        else:  # as if the free run had passed that map on its way (after its start)
+            got.valid_uv, got.valid_excess = early.uv, early.excess_after
+        return got
+
+    monkeypatch.setattr(R, "relax_island", spy)
+    free = real(xyz, uv0, faces, CFG, check_crossings=False)
+    # the case the rule rests on: that iterate is far above the free result, below the start
+    assert GUARD_START_RATIO * free.excess_after < early.excess_after < free.excess_before
+    uv, stats = relax_disk(xyz, uv0, faces, CFG)
+    assert guarded_calls == [] and stats["mode"] == "scaffold" and is_injective(uv, faces)
+    assert free.excess_after <= stats["excess"] <= 1.15 * free.excess_after
+
+
 def test_scaffold_is_scale_free_and_keeps_the_scale_of_its_input():
     xyz, faces, _ = _slit_egg_crate(amplitude=0.3, slits=2)
     uv0 = start_map(xyz, faces)
