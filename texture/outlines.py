@@ -1,10 +1,9 @@
 """Island outlines for the packer: the region an island covers, in far fewer faces.
 
 xatlas only needs the region an island covers, so it is handed each island's border loops,
-without the vertices inside straight runs (cut lines), ear-clipped by mapbox_earcut (the
-largest loop is the outer border, the others holes): the same region with about a
-twentieth of the faces. An island whose border is not simple loops, or whose UVs overlap
-themselves, is handed over whole.
+without the vertices inside straight runs (cut lines), ear-clipped by mapbox_earcut (each
+outer border with its holes, :func:`_pieces`): the same region with about a twentieth of
+the faces. An island whose UVs overlap themselves is handed over whole.
 
 For a guess (a ranking of layouts, :func:`texture.scale_search.estimate_layouts`) the loops
 may also be simplified (Douglas-Peucker, scikit-image) to a ``tolerance`` below the packer's
@@ -22,13 +21,29 @@ from mnacore.triangles import signed_areas, triangle_areas
 from .islands import edge_keys, edge_use_counts, half_edges
 
 
-def _border_loops(faces: np.ndarray) -> list[np.ndarray] | None:
+def _border_loops(faces: np.ndarray, split: bool = True) -> list[np.ndarray] | None:
     """Closed border loops (vertex indices, in the faces' winding) of one island, or None
-    where the border is not a set of simple loops (a vertex with two border edges out)."""
+    where the border is not a set of loops.
+
+    A vertex the border passes twice (two fans of faces meeting at one point of the border:
+    a disk whose cut or filled hole touches its border there) is split into one vertex per
+    fan first (``split``), so each loop is followed through it along its own fan; the loops
+    come back in the island's vertex ids, visiting that vertex twice (a polygon that touches
+    itself at a point, which ear clipping takes: the caller checks the area)."""
     he = half_edges(faces)
     border = he[edge_use_counts(edge_keys(np.arange(int(faces.max()) + 1), faces)) == 1]
-    if len(border) == 0 or len(np.unique(border[:, 0])) != len(border):
+    if len(border) == 0:
         return None
+    if len(np.unique(border[:, 0])) != len(border):
+        if not split:
+            return None
+        from .meshprep import corner_groups
+
+        fanned, _ = corner_groups(faces)
+        src = np.zeros(int(fanned.max()) + 1, np.int64)
+        src[fanned.ravel()] = faces.ravel()
+        loops = _border_loops(fanned, split=False)
+        return None if loops is None else [src[loop] for loop in loops]
     succ = dict(zip(border[:, 0].tolist(), border[:, 1].tolist()))
     loops, seen = [], set()
     for start in border[:, 0].tolist():
@@ -93,11 +108,42 @@ def _ear_clipped(uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
     return verts[mapbox_earcut.triangulate_float64(np.ascontiguousarray(uv[verts]), ends).astype(np.int64)].reshape(-1, 3)
 
 
+def _pieces(uv: np.ndarray, loops: list[np.ndarray]) -> list[list[np.ndarray]]:
+    """``loops`` grouped as ear clipping takes them: each outer border first, then its holes.
+
+    The largest loop (by area) is the island's outer border; loops wound the same way are
+    outer borders too (a piece joined to the island at one point of its border: the border
+    passes that vertex twice), loops wound the other way are holes, each in the smallest
+    outer border that holds most of its vertices."""
+    areas = np.array([_loop_area(uv[loop]) for loop in loops])
+    sign = np.sign(areas[int(np.argmax(np.abs(areas)))])
+    outers = sorted(np.flatnonzero(np.sign(areas) == sign), key=lambda i: -abs(areas[i]))
+    groups = {int(i): [loops[i]] for i in outers}
+    for h in np.flatnonzero(np.sign(areas) != sign):
+        owner = outers[0]
+        if len(outers) > 1:
+            from skimage.measure import points_in_poly
+
+            holding = [i for i in outers if points_in_poly(uv[loops[h]], uv[loops[i]]).mean() > 0.5]
+            owner = min(holding, key=lambda i: abs(areas[i])) if holding else owner
+        groups[int(owner)].append(loops[h])
+    return [groups[int(i)] for i in outers]
+
+
+def _region_area(uv: np.ndarray, pieces: list[list[np.ndarray]]) -> float:
+    """Area inside the outer borders and outside their holes (:func:`_pieces`)."""
+    return sum(abs(_loop_area(uv[g[0]])) - sum(abs(_loop_area(uv[h])) for h in g[1:]) for g in pieces)
+
+
+def _clipped(uv: np.ndarray, pieces: list[list[np.ndarray]]) -> np.ndarray:
+    return np.concatenate([_ear_clipped(uv, g) for g in pieces])
+
+
 def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, tolerance: float = 0.0) -> np.ndarray:
     """(F', 3) faces over the same vertices covering the same UV region as ``faces``: per
-    island, its border loops ear-clipped (mapbox_earcut; the largest loop is the outer
-    border, the others holes). An island whose border is not simple loops, or whose
-    outline's area differs from its own (UVs that overlap themselves), keeps its faces.
+    island, its border loops ear-clipped (mapbox_earcut; each outer border with its holes,
+    :func:`_pieces`). An island whose border is not loops, or whose outline's area differs
+    from its own (UVs that overlap themselves), keeps its faces.
 
     ``tolerance`` > 0: each loop simplified within it first (a region within ``tolerance``
     of the island's, for guesses only; see the module docstring); an island whose simplified
@@ -110,18 +156,15 @@ def island_outlines(uv: np.ndarray, faces: np.ndarray, island: np.ndarray, toler
         loops = _border_loops(f)
         tri = None
         if loops is not None:
-            areas = [abs(_loop_area(uv[loop])) for loop in loops]
-            outer = int(np.argmax(areas))
-            loops = [loops[outer]] + [loop for i, loop in enumerate(loops) if i != outer]
-            loops = [_without_straight_runs(uv, loop) for loop in loops]
-            tri = _ear_clipped(uv, loops)
+            pieces = [[_without_straight_runs(uv, loop) for loop in g] for g in _pieces(uv, loops)]
+            tri = _clipped(uv, pieces)
             own = float(triangle_areas(uv, f).sum())
             if len(tri) == 0 or abs(float(triangle_areas(uv, tri).sum()) - own) > 1e-9 * own:
                 tri = None
             elif tolerance > 0:
-                simple = [_simplified(uv, loop, tolerance) for loop in loops]
-                coarse = _ear_clipped(uv, simple)
-                area = abs(_loop_area(uv[simple[0]])) - sum(abs(_loop_area(uv[loop])) for loop in simple[1:])
+                simple = [[_simplified(uv, loop, tolerance) for loop in g] for g in pieces]
+                coarse = _clipped(uv, simple)
+                area = _region_area(uv, simple)
                 if len(coarse) and area > 0 and abs(float(triangle_areas(uv, coarse).sum()) - area) <= 1e-9 * area:
                     tri = coarse
         out.append(f if tri is None else tri)

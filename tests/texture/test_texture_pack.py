@@ -14,7 +14,7 @@ from mna.cli import main
 from mnacore.charts import load_charts, save_charts
 from mnacore.frame import Normalization
 from mnacore.grid import grid_faces
-from mnacore.triangles import triangle_areas
+from mnacore.triangles import signed_areas, triangle_areas
 from texture.atlas import AtlasConfig, build_atlas
 from texture.export import read_back
 from texture.islands import uv_islands
@@ -302,16 +302,37 @@ def test_simplified_outline_stays_within_its_tolerance(tol):
     assert set(np.unique(coarse)) <= set(np.unique(exact))
 
 
-def test_island_outline_keeps_faces_where_uvs_overlap_or_border_pinches():
+def test_island_outline_keeps_faces_where_uvs_overlap():
     uv, faces = _grid_island(n=4)
     folded = uv.copy()
     folded[6] += [2.5, 0.0]  # an interior vertex dragged over the border: the UVs overlap themselves
     island = np.zeros(len(faces), np.int64)
     np.testing.assert_array_equal(island_outlines(folded, faces, island), faces)
-    # two squares touching at one corner, one island: the border is not simple loops
-    uv2 = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [2, 1], [2, 2], [1, 2]], float)
-    bow = np.array([[0, 1, 2], [0, 2, 3], [2, 4, 5], [2, 5, 6]])
-    np.testing.assert_array_equal(island_outlines(uv2, bow, np.zeros(4, np.int64)), bow)
+
+
+@pytest.mark.parametrize("tol", [0.0, 0.3])
+def test_island_outline_follows_a_border_that_passes_a_vertex_twice(tol):
+    """A 12 x 12 grid with a 2 x 2 hole, and pieces joined to it at single border points: a
+    square at its far corner and a triangle at a side (the border passes each joint twice).
+    Each piece is ear-clipped on its own, the hole stays in the grid; the same region in a
+    few faces (before, such an island was handed to xatlas whole: every face)."""
+    uv, faces = _grid_island(hole=True)
+    n = len(uv)
+    extra = np.array([[13, 12], [13, 13], [12, 13], [5.5, -1.0], [6.5, -1.0]])
+    corner, side = 12 * 13 + 12, 6  # grid vertices (12, 12) and (6, 0)
+    more = np.array([[corner, n, n + 1], [corner, n + 1, n + 2], [side, n + 3, n + 4]])
+    uv, faces = np.vstack([uv, extra]), np.vstack([faces, more])
+    assert (signed_areas(uv, faces) > 0).all()
+    out = island_outlines(uv, faces, np.zeros(len(faces), np.int64), tolerance=tol)
+    # grid with hole: 8 corners, 8 triangles; the square 2; the triangle 1
+    assert len(out) == 8 + 2 + 1
+    assert triangle_areas(uv, out).sum() == pytest.approx(144.0 - 4.0 + 1.0 + 0.5, rel=1e-12)
+    assert (signed_areas(uv, out) > 0).all()
+    # the same texels, rasterised, as the island's own faces
+    from texture.raster import face_id_image
+
+    scaled = (uv + [0.0, 1.5]) / 16.0
+    np.testing.assert_array_equal(face_id_image(scaled[out], 64, 64)[0] >= 0, face_id_image(scaled[faces], 64, 64)[0] >= 0)
 
 
 def test_packing_through_outlines_matches_packing_faces():
