@@ -13,7 +13,7 @@ lowered the energy.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -89,16 +89,17 @@ def slit_path(xyz: np.ndarray, faces: np.ndarray, energy: np.ndarray) -> list[in
     return path[::-1]
 
 
-def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
-    """A start (:func:`texture.flatten.start_map`) then SLIM at the isometric scale; None if
-    the start is not valid."""
+def _embed(xyz: np.ndarray, faces: np.ndarray, cfg: RelaxConfig) -> tuple[np.ndarray | None, str]:
+    """(A start (:func:`texture.flatten.start_map`) then SLIM at the isometric scale, or None
+    if the start is not valid; :func:`texture.flatten.relax_disk`'s mode)."""
     # relax_disk makes the convex map its two-resolution path needs; SLIM starts here where that is refused
     uv = start_map(xyz, faces, cfg.slim_max_faces)
     signed = signed_areas(uv, faces)
     if not np.isfinite(uv).all() or (signed <= 0).any():
-        return None
+        return None, "start"
     uv *= np.sqrt(triangle_areas(xyz, faces).sum() / signed.sum())
-    return relax_disk(xyz, uv, faces, cfg)[0]
+    got, stats = relax_disk(xyz, uv, faces, cfg)
+    return got, stats["mode"]
 
 
 def _opened(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxConfig) -> np.ndarray | None:
@@ -129,8 +130,11 @@ def _opened(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxCo
     return min(tried, key=lambda u: energy_excess(xyz, u, faces)) if tried else None
 
 
-def _relaxed_cut(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxConfig) -> tuple[np.ndarray | None, float]:
-    """(UVs of the slit island, their energy excess), (None, inf) where no map was found.
+def _relaxed_cut(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: RelaxConfig,
+                 embed_cfg: RelaxConfig | None = None) -> tuple[np.ndarray | None, float, str | None]:
+    """(UVs of the slit island, their energy excess, the fresh embedding's relax_disk mode or
+    None where none ran), (None, inf, mode) where no map was found. ``embed_cfg``: the SLIM
+    options of the fresh embedding (default ``cfg``).
 
     The slit opened from the relaxed map (:func:`_opened`) first: SLIM descends from the
     map before the cut, so it keeps what was relaxed. Where the opened map is no better
@@ -141,11 +145,12 @@ def _relaxed_cut(xyz: np.ndarray, faces: np.ndarray, closed: np.ndarray, cfg: Re
     the closed map would cost minutes)."""
     opened = None if 0 < cfg.multires_faces < len(faces) else _opened(xyz, faces, closed, cfg)
     tried = [] if opened is None else [(opened, float(energy_excess(xyz, opened, faces)))]
+    mode = None
     if not tried or tried[0][1] >= energy_excess(xyz, closed, faces):
-        fresh = _embed(xyz, faces, cfg)
+        fresh, mode = _embed(xyz, faces, cfg if embed_cfg is None else embed_cfg)
         if fresh is not None:
             tried.append((fresh, float(energy_excess(xyz, fresh, faces))))
-    return min(tried, key=lambda t: t[1]) if tried else (None, np.inf)
+    return (*min(tried, key=lambda t: t[1]), mode) if tried else (None, np.inf, mode)
 
 
 def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxConfig, target: float,
@@ -164,6 +169,12 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
     best = SlitResult(faces, uv, source, 0, before, before)
     cur_faces, cur_uv, cur_src = faces, uv, source
     misses, length = 0, 0.0
+    # once an island's fresh embedding fell back from two resolutions to plain SLIM, later
+    # slits embed it with plain SLIM directly: the fallback's map is the same, and what made
+    # the coarse copy fail (a start map that squeezes most of the disk: a long disk cut
+    # through many handles) is the island's shape, which one more slit path leaves as it is
+    # (7 of 7 such retries failed again, on a marching-cubes lattice and a benchmark fit, 2-12 s each)
+    embed_cfg = cfg
     for k in range(max_slits):
         if best.excess_after <= target:
             break
@@ -179,7 +190,9 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
         if not is_disk(new_faces):
             break
         new_src = cur_src[np.asarray(src, np.int64)]
-        new_uv, excess = _relaxed_cut(xyz[new_src], new_faces, cur_uv[np.asarray(src, np.int64)], cfg)
+        new_uv, excess, mode = _relaxed_cut(xyz[new_src], new_faces, cur_uv[np.asarray(src, np.int64)], cfg, embed_cfg)
+        if mode is not None and mode != "multires" and 0 < embed_cfg.multires_faces < len(new_faces):
+            embed_cfg = replace(embed_cfg, multires_faces=0)
         if new_uv is None:
             break
         cur_faces, cur_uv, cur_src = new_faces, new_uv, new_src

@@ -225,8 +225,10 @@ def test_a_fresh_embedding_starts_conformal_where_slim_may_run():
 
     xyz, faces = _cone_sector(n_r=20, n_t=60)
     refused = RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=len(faces) - 1, coarse_excess_limit=1e-9)
-    uv = _embed(xyz, faces, refused)
+    uv, mode = _embed(xyz, faces, refused)
+    assert mode != "multires"
     assert _injective(uv, faces) and energy_excess(xyz, uv, faces) < 1e-6
-    capped = _embed(xyz, faces, RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=len(faces) - 1,
-                                            coarse_excess_limit=1e-9, slim_max_faces=len(faces) - 1))
+    capped, mode = _embed(xyz, faces, RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=len(faces) - 1,
+                                                  coarse_excess_limit=1e-9, slim_max_faces=len(faces) - 1))
+    assert mode == "start"
     assert is_convex_border(capped, ordered_boundary(faces)) and energy_excess(xyz, capped, faces) > 1.0

@@ -371,7 +371,7 @@ def test_a_slit_opens_from_the_relaxed_map_of_a_cap():
     assert (signed_areas(opened, f) > 0).all() and not len(crossing_edges(f, opened))
     after = energy_excess(xyz[src], opened, f)
     assert after < 0.4 * before
-    assert after <= 1.05 * energy_excess(xyz[src], _embed(xyz[src], f, cfg), f)
+    assert after <= 1.05 * energy_excess(xyz[src], _embed(xyz[src], f, cfg)[0], f)
     # the twins of each path vertex but the peak (both sides of the slit) are apart in UV
     slit_length = np.linalg.norm(np.diff(xyz[path], axis=0), axis=1).sum()
     gaps = [np.ptp(opened[src == v], axis=0).max() for v in path[:-1] if (src == v).sum() == 2]
@@ -395,8 +395,8 @@ def test_a_slit_on_a_saddle_falls_back_to_a_fresh_embedding():
     closed_excess = energy_excess(p, closed, f)
     opened = _opened(p, f, closed, cfg)
     assert opened is None or energy_excess(p, opened, f) >= closed_excess
-    got, excess = _relaxed_cut(p, f, closed, cfg)
-    fresh = energy_excess(p, _embed(p, f, cfg), f)
+    got, excess, _ = _relaxed_cut(p, f, closed, cfg)
+    fresh = energy_excess(p, _embed(p, f, cfg)[0], f)
     assert excess == pytest.approx(fresh, rel=1e-9) and excess < 1.1 * closed_excess
     assert (signed_areas(got, f) > 0).all() and not len(crossing_edges(f, got))
 
@@ -804,3 +804,29 @@ def test_a_moebius_strip_is_cut_where_its_winding_cannot_agree():
     m = measure(res.mesh).summary
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
     assert all(t == (1, 1) for t in island_topology(res))  # disks
+
+
+def test_slits_stop_trying_two_resolutions_on_an_island_where_it_failed(monkeypatch):
+    """Once a slit island's fresh embedding fell back from two resolutions to plain SLIM,
+    the island's later slits go to plain SLIM directly (the fallback's map is the same)."""
+    import texture.multires as M
+    from texture.relax import RelaxConfig, energy_excess
+    from texture.slits import slit_island
+
+    sphere = trimesh.creation.icosphere(4)
+    keep = sphere.triangles_center[:, 2] > -0.7  # a cap well past a hemisphere: it needs slits
+    used, inv = np.unique(sphere.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(sphere.vertices)[used] * 3.0, inv.reshape(-1, 3)
+    uv, _ = _relaxed_disk(xyz, faces)
+    # two resolutions above 500 faces, refused after every coarse SLIM
+    cfg = RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=500, coarse_excess_limit=1e-9)
+    real, calls = M.relax_multires, []
+
+    def spy(*args, **kw):
+        calls.append(len(args[2]))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(M, "relax_multires", spy)
+    got = slit_island(xyz, faces, uv, cfg, target=1e-3, max_slits=3)
+    assert got.slits >= 2 and got.excess_after < energy_excess(xyz, uv, faces)
+    assert len(calls) == 1  # the first slit's embedding only
