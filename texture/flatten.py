@@ -253,7 +253,8 @@ def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple
     run's first crossing, 4.67 guarded from Tutte); if that fails too, that iterate (or the
     start). With ``cfg.scaffold_above`` set, SLIM with a scaffold (:mod:`texture.scaffold`)
     runs after a guarded run that ends above it (the lower map is kept), and instead of the
-    guarded run where that would start far from relaxed (:data:`GUARD_START_RATIO`). A disk above ``cfg.multires_faces`` faces is first flattened by
+    guarded run where that would start far from relaxed (:data:`GUARD_START_RATIO`). A disk
+    above ``cfg.multires_faces`` faces is first flattened by
     :func:`texture.multires.relax_multires` (SLIM's cost per iteration grows faster than the
     face count); the above runs only where that fails, and not above ``cfg.slim_max_faces``
     faces: there the start is kept (mode ``start``), and the unwrap's split stage halves the disk.

@@ -28,6 +28,10 @@ from .relax import RelaxConfig, boundary_edges, energy_excess, is_injective, rel
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
 MAX_MISSES = 2
+#: :func:`texture.flatten.relax_disk` modes of plain SLIM (not "multires", nor "start": a
+#: disk above ``slim_max_faces`` keeps its start where two resolutions fail, and must not be
+#: handed to plain SLIM on a later slit)
+PLAIN_SLIM = ("free", "guarded", "scaffold")
 
 
 @dataclass
@@ -191,7 +195,7 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
             break
         new_src = cur_src[np.asarray(src, np.int64)]
         new_uv, excess, mode = _relaxed_cut(xyz[new_src], new_faces, cur_uv[np.asarray(src, np.int64)], cfg, embed_cfg)
-        if mode is not None and mode != "multires" and 0 < embed_cfg.multires_faces < len(new_faces):
+        if mode in PLAIN_SLIM and 0 < embed_cfg.multires_faces < len(new_faces):
             embed_cfg = replace(embed_cfg, multires_faces=0)
         if new_uv is None:
             break

@@ -830,3 +830,9 @@ def test_slits_stop_trying_two_resolutions_on_an_island_where_it_failed(monkeypa
     got = slit_island(xyz, faces, uv, cfg, target=1e-3, max_slits=3)
     assert got.slits >= 2 and got.excess_after < energy_excess(xyz, uv, faces)
     assert len(calls) == 1  # the first slit's embedding only
+    # above slim_max_faces the fallback keeps the start (no plain SLIM): each slit tries again
+    calls.clear()
+    from dataclasses import replace
+
+    slit_island(xyz, faces, uv, replace(cfg, slim_max_faces=500), target=1e-3, max_slits=3)
+    assert len(calls) >= 2
