@@ -37,11 +37,9 @@ def _border_loops(faces: np.ndarray, split: bool = True) -> list[np.ndarray] | N
     if len(np.unique(border[:, 0])) != len(border):
         if not split:
             return None
-        from .meshprep import corner_groups
+        from .flatten import split_pinched
 
-        fanned, _ = corner_groups(faces)
-        src = np.zeros(int(fanned.max()) + 1, np.int64)
-        src[fanned.ravel()] = faces.ravel()
+        fanned, src = split_pinched(faces)
         loops = _border_loops(fanned, split=False)
         return None if loops is None else [src[loop] for loop in loops]
     succ = dict(zip(border[:, 0].tolist(), border[:, 1].tolist()))

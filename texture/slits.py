@@ -23,15 +23,11 @@ from mnacore import distortion as D
 from mnacore.triangles import signed_areas, triangle_areas
 
 from .distortion_faces import face_geometry
-from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
+from .flatten import PLAIN_SLIM, _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
 from .relax import RelaxConfig, boundary_edges, energy_excess, is_injective, relax_island
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
 MAX_MISSES = 2
-#: :func:`texture.flatten.relax_disk` modes of plain SLIM (not "multires", nor "start": a
-#: disk above ``slim_max_faces`` keeps its start where two resolutions fail, and must not be
-#: handed to plain SLIM on a later slit)
-PLAIN_SLIM = ("free", "guarded", "scaffold")
 
 
 @dataclass
@@ -195,6 +191,8 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
             break
         new_src = cur_src[np.asarray(src, np.int64)]
         new_uv, excess, mode = _relaxed_cut(xyz[new_src], new_faces, cur_uv[np.asarray(src, np.int64)], cfg, embed_cfg)
+        # not after mode "start": a disk above slim_max_faces keeps its start where two
+        # resolutions fail, and plain SLIM on a later slit would take minutes
         if mode in PLAIN_SLIM and 0 < embed_cfg.multires_faces < len(new_faces):
             embed_cfg = replace(embed_cfg, multires_faces=0)
         if new_uv is None:
