@@ -70,8 +70,10 @@ def bake(atlas: NeuralAtlas, z: torch.Tensor) -> NeuralAtlas:
         atlas.charts, width, len(chart.hidden), chart.skip,
         label.hidden[0].v.shape[2] if label is not None else 1, len(label.hidden) if label is not None else 1,
         label.octaves if label is not None else 0, latent=0, label_on_uv=atlas.label_on_uv,
-        occupancy=atlas.occupancy,
+        occupancy=atlas.occupancy, chart_octaves=chart.octaves,
     ).to(z.device)
+    if chart.octaves:
+        out.chart.window.copy_(chart.window)
     D = atlas.latent
     for i, layer in enumerate(chart.hidden):
         fan_in = layer.v.shape[1]

@@ -31,6 +31,10 @@ class ModelConfig:
     """Hidden layers of l_k."""
     octaves: int = 6
     """Positional-encoding octaves of l_k's input (0 = no encoding: an ablation)."""
+    chart_octaves: int = 0
+    """Octaves of a windowed sine/cosine encoding of phi_k's input (an mna extension, not in
+    the paper; 0 = the plain (u, v) of the paper). A fit opens them one by one over
+    ``chart_octaves_from`` to ``chart_octaves_until`` of its run."""
     latent: int = 0
     """Latent code size D for the conditional version (0 for a per-shape fit)."""
 
@@ -143,6 +147,11 @@ class FitConfig(AtlasSettings):
     denser samples let it see detail that the early steps (which place the charts) need not."""
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
+    chart_octaves_from: float = 0.0
+    """Fraction of the run at which the chart encoding's octaves (``model.chart_octaves``)
+    start to open, one by one: none before it."""
+    chart_octaves_until: float = 0.5
+    """Fraction of the run from which all of them are open."""
     charts_rule: str = "fixed"
     """``fixed``: ``model.charts`` charts throughout; ``grow``: start with ``model.charts``
     and add one where a gap in the charts' coverage stops closing (:mod:`mna.grow`), up to
@@ -185,6 +194,8 @@ class FitConfig(AtlasSettings):
         check_int(self.hard_targets, "hard_targets", 0)
         check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
         check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)
+        check_float(self.chart_octaves_from, "chart_octaves_from", 0, 1)
+        check_float(self.chart_octaves_until, "chart_octaves_until", self.chart_octaves_from, 1)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
         if not isinstance(self.preset, str):
@@ -250,6 +261,7 @@ def validate_model(m: ModelConfig, where: str = "model.", charts_name: str = "--
     check_int(m.chart_depth, where + "chart_depth", 2)
     check_int(m.chart_skip, where + "chart_skip", 1, m.chart_depth - 1)
     check_int(m.octaves, where + "octaves", 0, MAX_OCTAVES)
+    check_int(m.chart_octaves, where + "chart_octaves", 0, MAX_OCTAVES)
     check_int(m.latent, where + "latent", 0)
 
 

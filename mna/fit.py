@@ -85,10 +85,20 @@ class Fitter:
         late = cfg.late_uv_samples and self.progress() >= cfg.lr_decay_start
         return cfg.late_uv_samples if late else cfg.uv_samples
 
+    def octaves_open(self) -> float:
+        """How many of the chart encoding's octaves are open now: none until the first fraction
+        ``chart_octaves_from``, all from ``chart_octaves_until``, linearly between."""
+        a, b = self.cfg.chart_octaves_from, self.cfg.chart_octaves_until
+        p = self.progress()
+        share = 1.0 if p >= b else 0.0 if p <= a else (p - a) / (b - a)
+        return self.cfg.model.chart_octaves * share
+
     def train_step(self) -> StepLosses:
         cfg, model, dev = self.cfg, self.model, self.device
         for group in self.optimizer.param_groups:
             group["lr"] = cfg.lr * lr_factor(self.progress(), cfg.lr_decay_start, cfg.lr_final)
+        if model.chart.octaves:
+            model.chart.window.fill_(self.octaves_open())
         uv = uniform_uv(cfg.model.charts, self.uv_samples(), self.generator, 1, dev)
         pts, nrm, elements = self.surface.sample_elements(cfg.targets, self.rng)
         if self.hard is not None:

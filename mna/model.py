@@ -104,14 +104,19 @@ class ChartNet(nn.Module):
     """``phi_k(u; z)`` for all charts: width ``W``, ``depth`` hidden layers, skip at ``skip``."""
 
     def __init__(self, charts: int, width: int = 512, depth: int = 4, skip: int = 2, latent: int = 0,
-                 weight_norm: bool = True):
+                 weight_norm: bool = True, octaves: int = 0):
         super().__init__()
         if depth < 2 or not 0 < skip < depth:
             raise ValueError(f"chart net needs depth >= 2 and 0 < skip < depth, got depth={depth}, skip={skip}")
-        self.charts, self.latent, self.skip = charts, latent, skip
+        self.charts, self.latent, self.skip, self.octaves = charts, latent, skip, octaves
+        self.in_dim = 2 * (1 + 2 * octaves)
+        if octaves:
+            # how many octaves are open (:func:`windowed_encoding`); a fit opens them as it goes,
+            # and a finished or loaded model uses what its fit ended with
+            self.register_buffer("window", torch.tensor(float(octaves)))
         layers = []
         for i in range(depth):
-            fan_in = 2 + latent if i == 0 else width + (2 + latent if i == skip else 0)
+            fan_in = self.in_dim + latent if i == 0 else width + (self.in_dim + latent if i == skip else 0)
             layers.append(BatchedLinear(charts, fan_in, width, weight_norm))
         self.hidden = nn.ModuleList(layers)
         self.out = BatchedLinear(charts, width, 3, weight_norm)
@@ -121,25 +126,30 @@ class ChartNet(nn.Module):
         K, B, N, _ = uv.shape
         M = B * N
         u = uv.reshape(K, M, 2)
+        d_u = None  # d enc / d(u, v): (K, 2, M, in_dim); None for the plain input (the identity)
+        if self.octaves:
+            u, d_u = windowed_encoding(u, self.octaves, self.window, jacobian)
+        E = self.in_dim
         h = None
         t = None  # tangents d h / d(u, v): (K, 2, M, width)
         for i, layer in enumerate(self.hidden):
             w = layer.weight()
             takes_input = i == 0 or i == self.skip
-            n_h = 0 if i == 0 else w.shape[1] - (2 + self.latent if takes_input else 0)
+            n_h = 0 if i == 0 else w.shape[1] - (E + self.latent if takes_input else 0)
             pre = layer.b.unsqueeze(1)
             if n_h:
                 pre = torch.baddbmm(pre, h, w[:, :n_h])
             if takes_input:
-                w_u = w[:, n_h:n_h + 2]
+                w_u = w[:, n_h:n_h + E]
                 pre = torch.baddbmm(pre, u, w_u)
                 if self.latent:
-                    pre = pre + _latent_bias(w[:, n_h + 2:], z, N)
+                    pre = pre + _latent_bias(w[:, n_h + E:], z, N)
             if jacobian:
-                # chain rule; d u / d(u, v) is the identity, so the input's tangent is a row of W_u
+                # chain rule; d u / d(u, v) is the identity, so the plain input's tangent is a row of W_u
                 tp = torch.bmm(t.reshape(K, 2 * M, n_h), w[:, :n_h]).view(K, 2, M, -1) if n_h else 0.0
                 if takes_input:
-                    tp = tp + w_u.unsqueeze(2)
+                    tp = tp + (w_u.unsqueeze(2) if d_u is None
+                               else torch.bmm(d_u.reshape(K, 2 * M, E), w_u).view(K, 2, M, -1))
                 # d softplus_beta(x) / dx = sigmoid(beta x)
                 t = tp * torch.sigmoid(SOFTPLUS_BETA * pre).unsqueeze(1)
             h = F.softplus(pre, beta=SOFTPLUS_BETA)
@@ -154,6 +164,38 @@ class ChartNet(nn.Module):
                 jt = torch.bmm(wide(t.reshape(K, 2 * M, -1)), w).view(K, 2, B, N, 3)
                 jac = jt.permute(0, 2, 3, 4, 1)  # (K, B, N, 3, 2): columns d/du, d/dv
         return ChartForward(x, jac)
+
+
+def octave_weights(octaves: int, window: torch.Tensor | float, like: torch.Tensor) -> torch.Tensor:
+    """Weight of each octave ``i < octaves`` with ``window`` of them open: 0 below ``i``, 1 above
+    ``i + 1``, a cosine ramp between (coarse-to-fine, as BARF opens a NeRF's encoding), so a
+    fit can place its charts with the smooth input and add detail once they lie right."""
+    a = torch.as_tensor(window, dtype=like.dtype, device=like.device)
+    i = torch.arange(octaves, dtype=like.dtype, device=like.device)
+    return 0.5 * (1.0 - torch.cos(math.pi * (a - i).clamp(0.0, 1.0)))
+
+
+def windowed_encoding(u: torch.Tensor, octaves: int, window: torch.Tensor | float,
+                      jacobian: bool = False) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """``[u, w_i sin(2^i pi u), w_i cos(2^i pi u)]_{i<octaves}`` of ``u (K, M, 2)``
+    (:func:`octave_weights`), laid out as :func:`positional_encoding`, and, if asked, its
+    derivatives ``(K, 2, M, 2 (1 + 2 octaves))`` along u and along v."""
+    freqs = (2.0 ** torch.arange(octaves, dtype=u.dtype, device=u.device)) * math.pi
+    wts = octave_weights(octaves, window, u)
+    ang = u.unsqueeze(-1) * freqs  # (K, M, 2, octaves)
+    sin, cos = torch.sin(ang), torch.cos(ang)
+    enc = torch.cat([u, torch.cat([wts * sin, wts * cos], dim=-1).flatten(-2)], dim=-1)
+    if not jacobian:
+        return enc, None
+    K, M, _ = u.shape
+    d = []
+    for axis in range(2):  # only coordinate ``axis`` of u moves
+        one = torch.zeros(2, dtype=u.dtype, device=u.device)
+        one[axis] = 1.0
+        mask = one.view(1, 1, 2, 1)
+        d_sin, d_cos = mask * wts * freqs * cos, -mask * wts * freqs * sin
+        d.append(torch.cat([one.expand(K, M, 2), torch.cat([d_sin, d_cos], dim=-1).flatten(-2)], dim=-1))
+    return enc, torch.stack(d, dim=1)
 
 
 def positional_encoding(p: torch.Tensor, octaves: int) -> torch.Tensor:
@@ -209,11 +251,11 @@ class NeuralAtlas(nn.Module):
 
     def __init__(self, charts: int, chart_width: int = 512, chart_depth: int = 4, chart_skip: int = 2,
                  label_width: int = 256, label_depth: int = 4, octaves: int = 6, latent: int = 0,
-                 label_on_uv: bool = False, occupancy: bool = True):
+                 label_on_uv: bool = False, occupancy: bool = True, chart_octaves: int = 0):
         super().__init__()
         self.charts, self.latent = charts, latent
         self.label_on_uv, self.occupancy = label_on_uv, occupancy
-        self.chart = ChartNet(charts, chart_width, chart_depth, chart_skip, latent)
+        self.chart = ChartNet(charts, chart_width, chart_depth, chart_skip, latent, octaves=chart_octaves)
         self.label = (
             LabelNet(charts, 2 if label_on_uv else 3, label_width, label_depth, octaves, latent)
             if occupancy else None
@@ -225,7 +267,7 @@ class NeuralAtlas(nn.Module):
         m = model_cfg
         return cls(m.charts, m.chart_width, m.chart_depth, m.chart_skip, m.label_width, m.label_depth,
                    m.octaves, m.latent, label_on_uv=ablation_cfg.occupancy_on_uv,
-                   occupancy=not ablation_cfg.atlasnet)
+                   occupancy=not ablation_cfg.atlasnet, chart_octaves=m.chart_octaves)
 
     def label_logits(self, uv: torch.Tensor, x: torch.Tensor, z: torch.Tensor | None = None) -> torch.Tensor:
         """Logits of ``l_k`` at chart points ``x (K, B, N, 3)`` (or at ``uv`` in the ablation)."""

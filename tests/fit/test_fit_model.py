@@ -5,7 +5,7 @@ import pytest
 import torch
 from torch.nn import functional as F
 
-from mna.model import SOFTPLUS_BETA, ChartNet, LabelNet, positional_encoding
+from mna.model import SOFTPLUS_BETA, ChartNet, LabelNet, octave_weights, positional_encoding, windowed_encoding
 
 
 def _naive_chart(net: ChartNet, k: int, u: torch.Tensor, z: torch.Tensor | None) -> torch.Tensor:
@@ -115,3 +115,33 @@ def test_chart_outputs_stay_float32_under_autocast():
     assert not torch.equal(low.x, low.x.bfloat16().float())
     double = ChartNet(charts=2, width=64, depth=4, skip=2).double()
     assert double(uv.double(), jacobian=True).jac.dtype == torch.float64  # wider stays wider
+
+
+@pytest.mark.parametrize("latent,window", [(0, 3.0), (0, 1.4), (4, 2.5)])
+def test_encoded_chart_jacobian_matches_autograd(latent, window):
+    """phi_k on the windowed sine/cosine encoding of (u, v): the forward-mode Jacobian carries
+    the encoding's own derivative (frequencies up to 4 pi here, so a missing factor shows)."""
+    torch.manual_seed(3)
+    K, B, N = 2, 2, 9
+    net = ChartNet(K, width=16, latent=latent, octaves=3).double()
+    net.window.fill_(window)
+    uv = (torch.rand(K, B, N, 2, dtype=torch.float64) * 2 - 1).requires_grad_(True)
+    z = torch.randn(B, latent, dtype=torch.float64) if latent else None
+    out = net(uv, z, jacobian=True)
+    for c in range(3):
+        (grad,) = torch.autograd.grad(out.x[..., c].sum(), uv, retain_graph=True)
+        torch.testing.assert_close(out.jac[..., c, :], grad, rtol=1e-7, atol=1e-9)
+
+
+def test_octave_window_opens_coarse_to_fine():
+    """Octave i is shut below window i, open above i + 1, half open at i + 0.5; shut octaves
+    leave only the plain (u, v) in the encoding."""
+    u = torch.tensor([[[0.3, -0.7]]], dtype=torch.float64)
+    w = octave_weights(4, 1.5, u)
+    torch.testing.assert_close(w, torch.tensor([1.0, 0.5, 0.0, 0.0], dtype=torch.float64))
+    enc, _ = windowed_encoding(u, 4, 0.0)
+    assert enc.shape == (1, 1, 2 * (1 + 2 * 4))
+    torch.testing.assert_close(enc[..., :2], u)
+    assert float(enc[..., 2:].abs().max()) == 0.0
+    enc, _ = windowed_encoding(u, 4, 4.0)
+    torch.testing.assert_close(enc, positional_encoding(u, 4))  # fully open: the plain encoding

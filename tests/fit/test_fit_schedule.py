@@ -84,3 +84,38 @@ def test_surface_term_ends_where_the_lr_decays(monkeypatch):
         fitter.train_step()
     assert all(l_surf > 1e-4 and extra == pytest.approx(0.5 * l_surf, rel=1e-5) for l_surf, extra in seen[:3])
     assert all(l_surf == 0.0 and extra == 0.0 for l_surf, extra in seen[3:])
+
+
+def test_chart_octaves_open_over_their_window(monkeypatch):
+    """A 10-step fit with 3 chart octaves opening from 0.2 to 0.6 of the run: shut at steps 1-3
+    (progress 0-0.2), 3 (p - 0.2) / 0.4 open between, all from step 7 (progress 0.6) on; the
+    window the model ends with is saved and loaded with it."""
+    s = trimesh.creation.icosphere(subdivisions=3, radius=2.5)
+    surface = make_surface(s.vertices, s.faces)
+    cfg = C.tiny()
+    cfg.model.charts, cfg.model.chart_octaves = 2, 3
+    cfg.steps, cfg.chart_octaves_from, cfg.chart_octaves_until = 10, 0.2, 0.6
+    fitter = F.Fitter(cfg.validate(), surface, torch.device("cpu"))
+    seen = []
+    real = F.uniform_uv
+
+    def spy(*args, **kwargs):
+        seen.append(float(fitter.model.chart.window))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(F, "uniform_uv", spy)
+    while not fitter.done():
+        fitter.train_step()
+    want = [0.0, 0.0, 0.0, 0.75, 1.5, 2.25, 3.0, 3.0, 3.0, 3.0]
+    assert seen == pytest.approx(want)
+    again = F.Fitter(cfg, surface, torch.device("cpu"))
+    again.model.chart.window.fill_(0.0)
+    again.load_state_dict(fitter.state_dict())
+    assert float(again.model.chart.window) == 3.0
+
+
+def test_chart_octaves_window_must_be_ordered():
+    cfg = C.tiny()
+    cfg.chart_octaves_from, cfg.chart_octaves_until = 0.6, 0.2
+    with pytest.raises(MnaError, match="chart_octaves_until"):
+        cfg.validate()

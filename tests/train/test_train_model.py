@@ -25,18 +25,21 @@ def test_pointnet_shape_and_permutation_invariance():
     assert not any(isinstance(m, torch.nn.modules.batchnorm._BatchNorm) for m in enc.modules())
 
 
-@pytest.mark.parametrize("atlasnet", [False, True])
-def test_bake_equals_the_conditional_atlas(atlasnet):
-    """z enters as a bias: the baked latent-free atlas gives the same points, occupancy, Jacobians."""
+@pytest.mark.parametrize("atlasnet,octaves", [(False, 0), (True, 0), (False, 2)])
+def test_bake_equals_the_conditional_atlas(atlasnet, octaves):
+    """z enters as a bias: the baked latent-free atlas gives the same points, occupancy, Jacobians
+    (also with the charts' input encoded, its window half open)."""
     cfg = train_config.tiny()
-    cfg.model.charts, cfg.model.latent = 2, 8
+    cfg.model.charts, cfg.model.latent, cfg.model.chart_octaves = 2, 8, octaves
     cfg.ablation.atlasnet = atlasnet
     torch.manual_seed(1)
     model = ConditionalAtlas.from_config(cfg)
+    if octaves:
+        model.atlas.chart.window.fill_(1.5)
     z = torch.randn(1, 8)
     model.atlas.c.fill_(0.7)
     baked = bake(model.atlas, z)
-    assert baked.latent == 0 and baked.chart.hidden[0].v.shape[1] == 2
+    assert baked.latent == 0 and baked.chart.hidden[0].v.shape[1] == 2 * (1 + 2 * octaves)
     uv = uniform_uv(2, 300, torch.Generator().manual_seed(0))
     ref = model.atlas.chart(uv, z, jacobian=True)
     out = baked.chart(uv, None, jacobian=True)
