@@ -177,9 +177,9 @@ def octave_weights(octaves: int, window: torch.Tensor | float, like: torch.Tenso
 
 def windowed_encoding(u: torch.Tensor, octaves: int, window: torch.Tensor | float,
                       jacobian: bool = False) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """``[u, w_i sin(2^i pi u), w_i cos(2^i pi u)]_{i<octaves}`` of ``u (K, M, 2)``
-    (:func:`octave_weights`), laid out as :func:`positional_encoding`, and, if asked, its
-    derivatives ``(K, 2, M, 2 (1 + 2 octaves))`` along u and along v."""
+    """``[u, w_i sin(2^i pi u), w_i cos(2^i pi u)]_{i<octaves}`` of ``u (..., d)`` (weights
+    :func:`octave_weights`; per coordinate its sines, then its cosines) and, if asked (for
+    ``u (K, M, 2)``), its derivatives ``(K, 2, M, 2 (1 + 2 octaves))`` along u and along v."""
     freqs = (2.0 ** torch.arange(octaves, dtype=u.dtype, device=u.device)) * math.pi
     wts = octave_weights(octaves, window, u)
     ang = u.unsqueeze(-1) * freqs  # (K, M, 2, octaves)
@@ -199,13 +199,9 @@ def windowed_encoding(u: torch.Tensor, octaves: int, window: torch.Tensor | floa
 
 
 def positional_encoding(p: torch.Tensor, octaves: int) -> torch.Tensor:
-    """``[p, sin(2^i pi p), cos(2^i pi p)]_{i<octaves}``: ``(..., d) -> (..., d (1 + 2 octaves))``."""
-    if octaves == 0:
-        return p
-    freqs = (2.0 ** torch.arange(octaves, dtype=p.dtype, device=p.device)) * math.pi
-    ang = p.unsqueeze(-1) * freqs  # (..., d, octaves)
-    enc = torch.cat([torch.sin(ang), torch.cos(ang)], dim=-1).flatten(-2)
-    return torch.cat([p, enc], dim=-1)
+    """``[p, sin(2^i pi p), cos(2^i pi p)]_{i<octaves}``: ``(..., d) -> (..., d (1 + 2 octaves))``
+    (:func:`windowed_encoding` with every octave open: each weight is exactly 1)."""
+    return windowed_encoding(p, octaves, float(octaves))[0] if octaves else p
 
 
 class LabelNet(nn.Module):

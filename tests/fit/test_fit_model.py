@@ -1,6 +1,8 @@
 """The batched model against naive per-chart loops, and forward-mode Jacobians against autograd."""
 from __future__ import annotations
 
+import math
+
 import pytest
 import torch
 from torch.nn import functional as F
@@ -143,5 +145,8 @@ def test_octave_window_opens_coarse_to_fine():
     assert enc.shape == (1, 1, 2 * (1 + 2 * 4))
     torch.testing.assert_close(enc[..., :2], u)
     assert float(enc[..., 2:].abs().max()) == 0.0
-    enc, _ = windowed_encoding(u, 4, 4.0)
-    torch.testing.assert_close(enc, positional_encoding(u, 4))  # fully open: the plain encoding
+    enc, _ = windowed_encoding(u, 4, 4.0)  # fully open: per coordinate its sines, then cosines
+    f = math.pi * 2.0 ** torch.arange(4, dtype=torch.float64)
+    want = torch.cat([u[0, 0], torch.sin(0.3 * f), torch.cos(0.3 * f), torch.sin(-0.7 * f), torch.cos(-0.7 * f)])
+    torch.testing.assert_close(enc[0, 0], want)
+    torch.testing.assert_close(positional_encoding(u, 4), enc)
