@@ -155,6 +155,7 @@ def per_shape_run(spec: dict, s: Sizes, work: Path, out: Path, device: str) -> d
     cfg.steps, cfg.seed, cfg.device = s.fit_steps, spec["seed"], device
     # mna extensions, not the paper's method: off for every variant
     cfg.loss.w_orient = cfg.loss.w_surface = 0.0
+    cfg.model.chart_octaves = 0
     cfg = paper.configure(cfg, spec["variant"], spec["method"], spec["charts"], spec["ldist"])
     t0 = time.perf_counter()
     res = fit_run(str(shape_path(spec["shape"], work)), out, cfg, progress_bar=False, log=lambda _: None,

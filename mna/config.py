@@ -281,7 +281,13 @@ def fast() -> FitConfig:
     """Best quality per CPU-minute measured on a 2-core machine (see benchmarks/RESULTS.md)."""
     return FitConfig(
         preset="fast",
-        model=ModelConfig(chart_width=128, label_width=96, label_depth=3),
+        # the charts' (u, v) encoded in 2 octaves, opened from 10 % to 50 % of the run: the
+        # plain input's MLP learns fine relief, thin walls and small parts slowly (spectral
+        # bias); opened while L_surf places the charts, 3 octaves collapsed a 12-part
+        # assembly's domains (benchmarks/RESULTS.md, fit_quality_hard, thirty-third session)
+        model=ModelConfig(chart_width=128, label_width=96, label_depth=3, chart_octaves=2),
+        chart_octaves_from=0.1,
+        chart_octaves_until=0.5,
         uv_samples=3000,
         targets=3000,
         dist_samples=256,

@@ -72,12 +72,15 @@ def _fit_args(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def for_unwrap(cfg):
-    """``cfg`` as the unwrap fits it: without L_surf. The unwrap's segmentation is the charts'
-    domains, and L_surf (which lays each chart's whole square on the surface) makes them
-    overlap more, and they cut the mesh more: five 1,000-step refits with it gave seams of
-    21.33 -> 23.24 in sum (genus2 5.38 -> 6.80 and 4 -> 7 islands; the bunny alone shorter,
-    4.46 -> 3.82; benchmarks/RESULTS.md, fit_quality_hard)."""
+    """``cfg`` as the unwrap fits it: without L_surf and with the charts' plain (u, v) input.
+    The unwrap's segmentation is the charts' domains, and L_surf (which lays each chart's
+    whole square on the surface) makes them overlap more, and they cut the mesh more: five
+    1,000-step refits with it gave seams of 21.33 -> 23.24 in sum (genus2 5.38 -> 6.80 and
+    4 -> 7 islands; the bunny alone shorter, 4.46 -> 3.82; benchmarks/RESULTS.md,
+    fit_quality_hard). The input encoding (``model.chart_octaves``) buys the reconstruction
+    detail; the unwrap needs regions, not detail, and its benchmark was measured without it."""
     cfg.loss.w_surface = 0.0
+    cfg.model.chart_octaves = 0
     return cfg
 
 

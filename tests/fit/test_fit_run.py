@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 import trimesh
 
@@ -72,12 +73,21 @@ def test_same_seed_gives_identical_metrics(torus_file, tmp_path):
     assert _metrics(tmp_path / "c")["chamfer_mesh"] != _metrics(a)["chamfer_mesh"]
 
 
-def test_resume_after_interrupt_equals_uninterrupted(torus_file, tmp_path):
+@pytest.mark.parametrize("octaves", [0, 2])
+def test_resume_after_interrupt_equals_uninterrupted(torus_file, tmp_path, octaves):
+    """Also with the charts' input encoded, interrupted while its octaves open (step 13 of 30,
+    the window 20-80 % of the run)."""
+
+    def cfg():
+        c = _tiny(30)
+        c.model.chart_octaves, c.chart_octaves_from, c.chart_octaves_until = octaves, 0.2, 0.8
+        return c
+
     full, part = tmp_path / "full", tmp_path / "part"
-    fit_run(torus_file, full, _tiny(30), progress_bar=False, log=lambda s: None)
-    r = fit_run(torus_file, part, _tiny(30), callback=lambda step: step == 13, progress_bar=False, log=lambda s: None)
+    fit_run(torus_file, full, cfg(), progress_bar=False, log=lambda s: None)
+    r = fit_run(torus_file, part, cfg(), callback=lambda step: step == 13, progress_bar=False, log=lambda s: None)
     assert r.interrupted and r.steps == 13 and not (part / "metrics.json").exists()
-    r2 = fit_run(torus_file, part, _tiny(30), resume=True, progress_bar=False, log=lambda s: None)
+    r2 = fit_run(torus_file, part, cfg(), resume=True, progress_bar=False, log=lambda s: None)
     assert not r2.interrupted and r2.steps == 30
     ma, _, _, _ = load_model(full)
     mb, _, _, _ = load_model(part)
