@@ -281,13 +281,7 @@ def fast() -> FitConfig:
     """Best quality per CPU-minute measured on a 2-core machine (see benchmarks/RESULTS.md)."""
     return FitConfig(
         preset="fast",
-        # the charts' (u, v) encoded in 2 octaves, opened from 10 % to 50 % of the run: the
-        # plain input's MLP learns fine relief, thin walls and small parts slowly (spectral
-        # bias); opened while L_surf places the charts, 3 octaves collapsed a 12-part
-        # assembly's domains (benchmarks/RESULTS.md, fit_quality_hard, thirty-third session)
-        model=ModelConfig(chart_width=128, label_width=96, label_depth=3, chart_octaves=2),
-        chart_octaves_from=0.1,
-        chart_octaves_until=0.5,
+        model=ModelConfig(chart_width=128, label_width=96, label_depth=3),
         uv_samples=3000,
         targets=3000,
         dist_samples=256,
@@ -320,7 +314,23 @@ def tiny() -> FitConfig:
     )
 
 
-PRESETS = {"fast": fast, "paper": paper, "tiny": tiny}
+def detail() -> FitConfig:
+    """``fast`` with the charts' (u, v) encoded in 2 octaves, opened over 10-50 % of the run:
+    for reconstructions of fine relief, holes' walls and small parts at ``fast``'s 3,000 steps
+    (the plain input's MLP learns high frequencies slowly: spectral bias). At 3,000 steps it
+    gained 0.2-13 F points on 11 shapes at the same cost per step; on a short budget the
+    opened octaves have too little lr decay left to relax (the demo torus at 1,200 steps:
+    distortion 0.35 -> 0.61, its reconstruction atlas 5 -> 20 islands), so it is not ``fast``
+    itself; 3 octaves collapsed a 12-part assembly's domains (benchmarks/RESULTS.md,
+    fit_quality_hard, thirty-third session)."""
+    cfg = fast()
+    cfg.preset = "detail"
+    cfg.model.chart_octaves = 2
+    cfg.chart_octaves_from, cfg.chart_octaves_until = 0.1, 0.5
+    return cfg
+
+
+PRESETS = {"fast": fast, "detail": detail, "paper": paper, "tiny": tiny}
 
 
 def preset(name: str) -> FitConfig:

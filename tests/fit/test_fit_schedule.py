@@ -119,3 +119,16 @@ def test_chart_octaves_window_must_be_ordered():
     cfg.chart_octaves_from, cfg.chart_octaves_until = 0.6, 0.2
     with pytest.raises(MnaError, match="chart_octaves_until"):
         cfg.validate()
+
+
+def test_detail_preset_is_fast_with_the_chart_encoding(tmp_path):
+    """``detail`` differs from ``fast`` in the chart encoding and its window only, validates,
+    and survives the config.yaml round trip every run saves."""
+    fast, detail = C.to_dict(C.preset("fast")), C.to_dict(C.preset("detail"))
+    differ = {k for k in fast if fast[k] != detail[k]}
+    assert {"preset", "model"} <= differ <= {"preset", "model", "chart_octaves_from", "chart_octaves_until"}
+    assert {k for k in fast["model"] if fast["model"][k] != detail["model"][k]} == {"chart_octaves"}
+    cfg = C.preset("detail").validate()
+    assert cfg.model.chart_octaves == 2 and (cfg.chart_octaves_from, cfg.chart_octaves_until) == (0.1, 0.5)
+    C.save_yaml(tmp_path / "config.yaml", C.to_dict(cfg))
+    assert C.to_dict(C.from_dict(C.load_yaml(tmp_path / "config.yaml"))) == C.to_dict(cfg)
