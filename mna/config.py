@@ -318,7 +318,7 @@ def detail() -> FitConfig:
     """``fast`` with the charts' (u, v) encoded in 2 octaves, opened over 10-50 % of the run:
     for reconstructions of fine relief, holes' walls and small parts at ``fast``'s 3,000 steps
     (the plain input's MLP learns high frequencies slowly: spectral bias). At 3,000 steps it
-    gained 0.2-13 F points on 11 shapes at the same cost per step; on a short budget the
+    gained 0.1-13 F points on 11 shapes at the same cost per step; on a short budget the
     opened octaves have too little lr decay left to relax (the demo torus at 1,200 steps:
     distortion 0.35 -> 0.61, its reconstruction atlas 5 -> 20 islands), so it is not ``fast``
     itself; 3 octaves collapsed a 12-part assembly's domains (benchmarks/RESULTS.md,
