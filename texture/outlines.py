@@ -18,6 +18,7 @@ import numpy as np
 
 from mnacore.triangles import signed_areas, triangle_areas
 
+from .flatten import split_pinched
 from .islands import edge_keys, edge_use_counts, half_edges
 
 
@@ -37,8 +38,6 @@ def _border_loops(faces: np.ndarray, split: bool = True) -> list[np.ndarray] | N
     if len(np.unique(border[:, 0])) != len(border):
         if not split:
             return None
-        from .flatten import split_pinched
-
         fanned, src = split_pinched(faces)
         loops = _border_loops(fanned, split=False)
         return None if loops is None else [src[loop] for loop in loops]
@@ -113,6 +112,8 @@ def _pieces(uv: np.ndarray, loops: list[np.ndarray]) -> list[list[np.ndarray]]:
     outer borders too (a piece joined to the island at one point of its border: the border
     passes that vertex twice), loops wound the other way are holes, each in the smallest
     outer border that holds most of its vertices."""
+    from skimage.measure import points_in_poly
+
     areas = np.array([_loop_area(uv[loop]) for loop in loops])
     sign = np.sign(areas[int(np.argmax(np.abs(areas)))])
     outers = sorted(np.flatnonzero(np.sign(areas) == sign), key=lambda i: -abs(areas[i]))
@@ -120,8 +121,6 @@ def _pieces(uv: np.ndarray, loops: list[np.ndarray]) -> list[list[np.ndarray]]:
     for h in np.flatnonzero(np.sign(areas) != sign):
         owner = outers[0]
         if len(outers) > 1:
-            from skimage.measure import points_in_poly
-
             holding = [i for i in outers if points_in_poly(uv[loops[h]], uv[loops[i]]).mean() > 0.5]
             owner = min(holding, key=lambda i: abs(areas[i])) if holding else owner
         groups[int(owner)].append(loops[h])
