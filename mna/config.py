@@ -152,6 +152,12 @@ class FitConfig(AtlasSettings):
     start to open, one by one: none before it."""
     chart_octaves_until: float = 0.5
     """Fraction of the run from which all of them are open."""
+    chart_octaves_min_steps: int = 0
+    """The encoding opens only in runs of at least this many steps (0: in every run). Each
+    octave bends the charts as it opens, and the lr decay after the window must be long
+    enough to relax that (:meth:`mna.fit.Fitter.octaves_open`). A fresh fit shorter than this
+    is built without the encoding (:func:`settle_encoding`); with a time budget the run's
+    length in steps is estimated, from the steps done so far, when the window would open."""
     charts_rule: str = "fixed"
     """``fixed``: ``model.charts`` charts throughout; ``grow``: start with ``model.charts``
     and add one where a gap in the charts' coverage stops closing (:mod:`mna.grow`), up to
@@ -196,6 +202,7 @@ class FitConfig(AtlasSettings):
         check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)
         check_float(self.chart_octaves_from, "chart_octaves_from", 0, 1)
         check_float(self.chart_octaves_until, "chart_octaves_until", self.chart_octaves_from, 1)
+        check_int(self.chart_octaves_min_steps, "chart_octaves_min_steps", 0)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
         if not isinstance(self.preset, str):
@@ -281,7 +288,7 @@ def fast() -> FitConfig:
     """Best quality per CPU-minute measured on a 2-core machine (see benchmarks/RESULTS.md)."""
     return FitConfig(
         preset="fast",
-        model=ModelConfig(chart_width=128, label_width=96, label_depth=3),
+        model=ModelConfig(chart_width=128, label_width=96, label_depth=3, chart_octaves=2),
         uv_samples=3000,
         targets=3000,
         dist_samples=256,
@@ -301,6 +308,16 @@ def fast() -> FitConfig:
         lr_final=0.02,
         steps=3000,
         checkpoint_every=250,
+        # the charts' (u, v) in 2 windowed octaves, opened over 10-50 % of the run: finer relief,
+        # holes' walls and small parts (a plain-input MLP learns high frequencies slowly). At
+        # 3,000 steps 0.1-13 F points on 11 shapes at the same cost per step (benchmarks/
+        # RESULTS.md, fit_quality_hard, thirty-third session). Shorter runs leave too little lr
+        # decay after the window to relax what the octaves bend (the demo torus: distortion
+        # 0.46 with them vs 0.34 without at 1,800 steps, 0.30 vs 0.30 at 2,400; thirty-fourth
+        # session); 3 octaves collapsed a 12-part assembly's domains.
+        chart_octaves_from=0.1,
+        chart_octaves_until=0.5,
+        chart_octaves_min_steps=2400,
     )
 
 
@@ -314,23 +331,16 @@ def tiny() -> FitConfig:
     )
 
 
-def detail() -> FitConfig:
-    """``fast`` with the charts' (u, v) encoded in 2 octaves, opened over 10-50 % of the run:
-    for reconstructions of fine relief, holes' walls and small parts at ``fast``'s 3,000 steps
-    (the plain input's MLP learns high frequencies slowly: spectral bias). At 3,000 steps it
-    gained 0.1-13 F points on 11 shapes at the same cost per step; on a short budget the
-    opened octaves have too little lr decay left to relax (the demo torus at 1,200 steps:
-    distortion 0.35 -> 0.61, its reconstruction atlas 5 -> 20 islands), so it is not ``fast``
-    itself; 3 octaves collapsed a 12-part assembly's domains (benchmarks/RESULTS.md,
-    fit_quality_hard, thirty-third session)."""
-    cfg = fast()
-    cfg.preset = "detail"
-    cfg.model.chart_octaves = 2
-    cfg.chart_octaves_from, cfg.chart_octaves_until = 0.1, 0.5
+def settle_encoding(cfg: FitConfig) -> FitConfig:
+    """A fresh fit of fewer steps than ``chart_octaves_min_steps`` is built without the chart
+    encoding, so its model and saved config say what it ran (a time budget's length is not
+    known yet: :meth:`mna.fit.Fitter.octaves_open` keeps the window shut instead)."""
+    if cfg.time_budget is None and cfg.steps < cfg.chart_octaves_min_steps:
+        cfg.model.chart_octaves = 0
     return cfg
 
 
-PRESETS = {"fast": fast, "detail": detail, "paper": paper, "tiny": tiny}
+PRESETS = {"fast": fast, "paper": paper, "tiny": tiny}
 
 
 def preset(name: str) -> FitConfig:

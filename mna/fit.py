@@ -67,6 +67,8 @@ class Fitter:
         self.growth = Growth(cfg.max_charts) if growing else None
         self.step = 0
         self.elapsed = 0.0
+        self.encoding: bool | None = None
+        """whether the chart encoding opens in this run (None: not decided yet; :meth:`octaves_open`)."""
         self.stop_signal: int | None = None
         """the signal (SIGINT, SIGTERM) that stopped the last :meth:`run`, if one did."""
 
@@ -87,11 +89,22 @@ class Fitter:
 
     def octaves_open(self) -> float:
         """How many of the chart encoding's octaves are open now: none until the first fraction
-        ``chart_octaves_from``, all from ``chart_octaves_until``, linearly between."""
-        a, b = self.cfg.chart_octaves_from, self.cfg.chart_octaves_until
+        ``chart_octaves_from``, all from ``chart_octaves_until``, linearly between; none at all
+        in a run shorter than ``chart_octaves_min_steps``. That is decided once, as the window
+        would start to open, and kept (a resumed run does not shut an open window): a steps
+        run knows its length; a time-budget run estimates it from its pace so far."""
+        cfg = self.cfg
+        a, b = cfg.chart_octaves_from, cfg.chart_octaves_until
         p = self.progress()
-        share = 1.0 if p >= b else 0.0 if p <= a else (p - a) / (b - a)
-        return self.cfg.model.chart_octaves * share
+        if p <= a:
+            return 0.0
+        if self.encoding is None:
+            length = cfg.steps if not cfg.time_budget else self.step / p
+            self.encoding = length >= cfg.chart_octaves_min_steps
+        if not self.encoding:
+            return 0.0
+        share = 1.0 if p >= b else (p - a) / (b - a)
+        return cfg.model.chart_octaves * share
 
     def train_step(self) -> StepLosses:
         cfg, model, dev = self.cfg, self.model, self.device
@@ -130,6 +143,7 @@ class Fitter:
             "optimizer": self.optimizer.state_dict(),
             "step": self.step,
             "elapsed": self.elapsed,
+            "encoding": self.encoding,
             "torch_rng": self.generator.get_state(),
             "numpy_rng": self.rng.bit_generator.state,
             **({"errors": self.errors.state_dict()} if self.errors is not None else {}),
@@ -147,6 +161,7 @@ class Fitter:
         self.optimizer.load_state_dict(state["optimizer"])
         self.step = int(state["step"])
         self.elapsed = float(state["elapsed"])
+        self.encoding = state.get("encoding")  # checkpoints from before the rule: decided anew
         self.generator.set_state(state["torch_rng"])
         self.rng.bit_generator.state = state["numpy_rng"]
         if self.errors is not None and "errors" in state:

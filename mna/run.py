@@ -114,6 +114,8 @@ def fit_run(input_path: str | Path, out: str | Path, cfg: FitConfig, resume: boo
     # Flush-to-zero is per thread and inherited by threads created under it: switching it on
     # before the model exists lets torch's worker pool start with it too (2x faster fits here).
     # Extraction runs outside: its scipy work (Chamfer) stays in the CPU's normal mode.
+    if not resume:  # a resumed run keeps the model its checkpoint has
+        config_mod.settle_encoding(cfg)
     with flush_denormals():
         fitter = Fitter(cfg, surface, device)
         result, fit_seconds = _optimise(fitter, cfg, surface, out, input_path, resume, callback, progress_bar, log)

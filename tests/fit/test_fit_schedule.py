@@ -121,14 +121,68 @@ def test_chart_octaves_window_must_be_ordered():
         cfg.validate()
 
 
-def test_detail_preset_is_fast_with_the_chart_encoding(tmp_path):
-    """``detail`` differs from ``fast`` in the chart encoding and its window only, validates,
-    and survives the config.yaml round trip every run saves."""
-    fast, detail = C.to_dict(C.preset("fast")), C.to_dict(C.preset("detail"))
-    differ = {k for k in fast if fast[k] != detail[k]}
-    assert {"preset", "model"} <= differ <= {"preset", "model", "chart_octaves_from", "chart_octaves_until"}
-    assert {k for k in fast["model"] if fast["model"][k] != detail["model"][k]} == {"chart_octaves"}
-    cfg = C.preset("detail").validate()
-    assert cfg.model.chart_octaves == 2 and (cfg.chart_octaves_from, cfg.chart_octaves_until) == (0.1, 0.5)
-    C.save_yaml(tmp_path / "config.yaml", C.to_dict(cfg))
-    assert C.to_dict(C.from_dict(C.load_yaml(tmp_path / "config.yaml"))) == C.to_dict(cfg)
+def _octave_fitter(surface, min_steps, **cfg_fields):
+    cfg = C.tiny()
+    cfg.model.charts, cfg.model.chart_octaves = 2, 2
+    cfg.chart_octaves_from, cfg.chart_octaves_until, cfg.chart_octaves_min_steps = 0.1, 0.5, min_steps
+    for name, value in cfg_fields.items():
+        setattr(cfg, name, value)
+    return F.Fitter(cfg.validate(), surface, torch.device("cpu"))
+
+
+def test_chart_octaves_stay_shut_in_a_run_shorter_than_their_minimum():
+    """A 20-step run opens the encoding when ``chart_octaves_min_steps`` is 20 (one of its 2
+    octaves at step 6: progress 0.3 of the 0.1-0.5 window) and keeps it shut throughout when it is 21."""
+    s = trimesh.creation.icosphere(subdivisions=2, radius=2.5)
+    surface = make_surface(s.vertices, s.faces)
+    for min_steps, want in ((20, [0.0, 0.0, 0.5, 1.0, 1.5, 2.0, 2.0]), (21, [0.0] * 7)):
+        fitter = _octave_fitter(surface, min_steps, steps=20)
+        got = []
+        for step in (0, 2, 4, 6, 8, 10, 19):
+            fitter.step = step
+            got.append(fitter.octaves_open())
+        assert got == pytest.approx(want)
+        assert fitter.encoding is (min_steps == 20)
+
+
+def test_time_budget_estimates_the_run_length_once_as_the_window_opens():
+    """With a 100 s budget and the window from 0.1: 40 steps in 11 s is a pace of 364 steps in
+    the run, enough for a minimum of 360 (0.025 * 2 octaves open at progress 0.11), too few
+    for 370. The decision is kept when the pace changes afterwards, and a checkpoint carries it."""
+    s = trimesh.creation.icosphere(subdivisions=2, radius=2.5)
+    surface = make_surface(s.vertices, s.faces)
+    for min_steps, opens in ((360, True), (370, False)):
+        fitter = _octave_fitter(surface, min_steps, time_budget=100.0)
+        fitter.step, fitter.elapsed = 5, 9.0  # progress 0.09: before the window, nothing decided
+        assert fitter.octaves_open() == 0.0 and fitter.encoding is None
+        fitter.step, fitter.elapsed = 40, 11.0
+        assert fitter.octaves_open() == pytest.approx(0.05 if opens else 0.0)
+        fitter.step, fitter.elapsed = 4000 if not opens else 41, 30.0  # another pace: no second decision
+        assert fitter.octaves_open() == pytest.approx(1.0 if opens else 0.0)
+        again = _octave_fitter(surface, min_steps, time_budget=100.0)
+        again.load_state_dict(fitter.state_dict())
+        assert again.encoding is opens
+
+
+def test_fast_opens_the_encoding_only_in_long_enough_fresh_runs(tmp_path):
+    """``fast`` carries the chart encoding with a minimum run length below its own 3,000 steps;
+    :func:`mna.config.settle_encoding` builds a shorter steps run without it, leaves a time
+    budget's to the fitter, and the settled config survives the config.yaml round trip."""
+    fast = C.preset("fast").validate()
+    assert fast.model.chart_octaves == 2 and 0 < fast.chart_octaves_min_steps <= fast.steps
+    assert C.settle_encoding(C.preset("fast")).model.chart_octaves == 2
+    short = C.preset("fast")
+    short.steps = fast.chart_octaves_min_steps - 1
+    assert C.settle_encoding(short).model.chart_octaves == 0
+    timed = C.preset("fast")
+    timed.steps, timed.time_budget = 1, 60.0
+    assert C.settle_encoding(timed).model.chart_octaves == 2
+    C.save_yaml(tmp_path / "config.yaml", C.to_dict(short.validate()))
+    assert C.to_dict(C.from_dict(C.load_yaml(tmp_path / "config.yaml"))) == C.to_dict(short)
+
+
+def test_chart_octaves_min_steps_must_be_a_count():
+    cfg = C.tiny()
+    cfg.chart_octaves_min_steps = -5
+    with pytest.raises(MnaError, match="chart_octaves_min_steps"):
+        cfg.validate()
