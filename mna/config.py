@@ -288,7 +288,7 @@ def fast() -> FitConfig:
     """Best quality per CPU-minute measured on a 2-core machine (see benchmarks/RESULTS.md)."""
     return FitConfig(
         preset="fast",
-        model=ModelConfig(chart_width=128, label_width=96, label_depth=3, chart_octaves=2),
+        model=ModelConfig(chart_width=128, label_width=96, label_depth=3),
         uv_samples=3000,
         targets=3000,
         dist_samples=256,
@@ -308,16 +308,6 @@ def fast() -> FitConfig:
         lr_final=0.02,
         steps=3000,
         checkpoint_every=250,
-        # the charts' (u, v) in 2 windowed octaves, opened over 10-50 % of the run: finer relief,
-        # holes' walls and small parts (a plain-input MLP learns high frequencies slowly). At
-        # 3,000 steps 0.1-13 F points on 11 shapes at the same cost per step (benchmarks/
-        # RESULTS.md, fit_quality_hard, thirty-third session). Shorter runs leave too little lr
-        # decay after the window to relax what the octaves bend (the demo torus: distortion
-        # 0.46 with them vs 0.34 without at 1,800 steps, 0.30 vs 0.30 at 2,400; thirty-fourth
-        # session); 3 octaves collapsed a 12-part assembly's domains.
-        chart_octaves_from=0.1,
-        chart_octaves_until=0.5,
-        chart_octaves_min_steps=2400,
     )
 
 
@@ -331,6 +321,25 @@ def tiny() -> FitConfig:
     )
 
 
+def detail() -> FitConfig:
+    """``fast`` with the charts' (u, v) encoded in 2 octaves, opened over 10-50 % of runs of
+    2,400 steps or more: for reconstructions of fine relief, holes' walls and small parts (a
+    plain-input MLP learns high frequencies slowly: spectral bias). At 3,000 steps it gained
+    0.1-13 F points on 11 shapes at the same cost per step. Shorter runs leave too little lr
+    decay after the window to relax what the octaves bend (the demo torus: distortion 0.46
+    with them vs 0.34 without at 1,800 steps, 0.30 vs 0.30 at 2,400), so they are the plain
+    fit. It is not ``fast`` itself because the finer charts overlap: the domains' doubly
+    covered area rose 4-16 % -> 34-59 % on three shapes, and their reconstruction atlases
+    lost (spot: utilisation 0.69 -> 0.50, seam 4.63 -> 5.87); 3 octaves collapsed a 12-part
+    assembly's domains (benchmarks/RESULTS.md, fit_quality_hard, thirty-third and
+    thirty-fourth sessions)."""
+    cfg = fast()
+    cfg.preset = "detail"
+    cfg.model.chart_octaves = 2
+    cfg.chart_octaves_from, cfg.chart_octaves_until, cfg.chart_octaves_min_steps = 0.1, 0.5, 2400
+    return cfg
+
+
 def settle_encoding(cfg: FitConfig) -> FitConfig:
     """A fresh fit of fewer steps than ``chart_octaves_min_steps`` is built without the chart
     encoding, so its model and saved config say what it ran (a time budget's length is not
@@ -340,7 +349,7 @@ def settle_encoding(cfg: FitConfig) -> FitConfig:
     return cfg
 
 
-PRESETS = {"fast": fast, "paper": paper, "tiny": tiny}
+PRESETS = {"fast": fast, "detail": detail, "paper": paper, "tiny": tiny}
 
 
 def preset(name: str) -> FitConfig:

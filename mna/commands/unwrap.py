@@ -34,7 +34,7 @@ def register(subparsers) -> None:
     p.add_argument("--charts", default=None, metavar="K|auto",
                    help="K charts throughout, or auto: start with 3 and add charts (up to 6) where the coverage "
                         "stalls")
-    p.add_argument("--preset", default="fast", choices=["fast", "paper", "tiny"],
+    p.add_argument("--preset", default="fast", choices=["fast", "detail", "paper", "tiny"],
                    help="fit preset (default fast)")
     budget = p.add_mutually_exclusive_group()
     budget.add_argument("--steps", type=int, default=None,

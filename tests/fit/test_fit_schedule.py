@@ -164,17 +164,23 @@ def test_time_budget_estimates_the_run_length_once_as_the_window_opens():
         assert again.encoding is opens
 
 
-def test_fast_opens_the_encoding_only_in_long_enough_fresh_runs(tmp_path):
-    """``fast`` carries the chart encoding with a minimum run length below its own 3,000 steps;
-    :func:`mna.config.settle_encoding` builds a shorter steps run without it, leaves a time
-    budget's to the fitter, and the settled config survives the config.yaml round trip."""
-    fast = C.preset("fast").validate()
-    assert fast.model.chart_octaves == 2 and 0 < fast.chart_octaves_min_steps <= fast.steps
-    assert C.settle_encoding(C.preset("fast")).model.chart_octaves == 2
-    short = C.preset("fast")
-    short.steps = fast.chart_octaves_min_steps - 1
+def test_detail_is_fast_with_the_encoding_opened_only_in_long_enough_fresh_runs(tmp_path):
+    """``detail`` differs from ``fast`` in the chart encoding and its window only, with a
+    minimum run length below its 3,000 steps; :func:`mna.config.settle_encoding` builds a
+    shorter steps run without it, leaves a time budget's to the fitter, and the settled
+    config survives the config.yaml round trip every run saves."""
+    fast, detail = C.to_dict(C.preset("fast")), C.to_dict(C.preset("detail"))
+    differ = {k for k in fast if fast[k] != detail[k]}
+    assert {"preset", "model", "chart_octaves_min_steps"} <= differ <= {
+        "preset", "model", "chart_octaves_from", "chart_octaves_until", "chart_octaves_min_steps"}
+    assert {k for k in fast["model"] if fast["model"][k] != detail["model"][k]} == {"chart_octaves"}
+    cfg = C.preset("detail").validate()
+    assert cfg.model.chart_octaves == 2 and 0 < cfg.chart_octaves_min_steps <= cfg.steps
+    assert C.settle_encoding(C.preset("detail")).model.chart_octaves == 2
+    short = C.preset("detail")
+    short.steps = cfg.chart_octaves_min_steps - 1
     assert C.settle_encoding(short).model.chart_octaves == 0
-    timed = C.preset("fast")
+    timed = C.preset("detail")
     timed.steps, timed.time_budget = 1, 60.0
     assert C.settle_encoding(timed).model.chart_octaves == 2
     C.save_yaml(tmp_path / "config.yaml", C.to_dict(short.validate()))
