@@ -145,6 +145,12 @@ class FitConfig(AtlasSettings):
     0 = ``uv_samples`` throughout. Each target is pulled toward its nearest sample, so the
     samples' spacing is the finest error the loss can see: where the decay refines the fit,
     denser samples let it see detail that the early steps (which place the charts) need not."""
+    late_w_dist: float = 0.0
+    """L_dist's weight once the lr decays (progress >= ``lr_decay_start``); 0 = ``loss.w_dist``
+    throughout. Needs ``loss.w_dist`` > 0. What the charts bend while they are placed (and
+    while an input encoding opens) the decay relaxes toward isometry; a stronger weight
+    there relaxes more. Dropped with the encoding from a run too short for it
+    (``chart_octaves_min_steps``)."""
     targets: int = 2500
     """Target surface points per step (drawn fresh from a mesh every step)."""
     chart_octaves_from: float = 0.0
@@ -197,6 +203,9 @@ class FitConfig(AtlasSettings):
         for name in ("uv_samples", "targets", "checkpoint_every", "log_every"):
             check_int(getattr(self, name), name, 1)
         check_int(self.late_uv_samples, "late_uv_samples", 0)
+        check_float(self.late_w_dist, "late_w_dist", 0, 1e12)
+        if self.late_w_dist > 0 and not self.loss.w_dist > 0:
+            raise MnaError("late_w_dist needs loss.w_dist > 0 (the distortion term is off)")
         check_int(self.hard_targets, "hard_targets", 0)
         check_choice(self.charts_rule, "charts_rule", CHARTS_RULES)
         check_int(self.max_charts, "max_charts", 1, MAX_CHARTS)
@@ -331,21 +340,27 @@ def detail() -> FitConfig:
     fit. It is not ``fast`` itself because the finer charts overlap: the domains' doubly
     covered area rose 4-16 % -> 34-59 % on three shapes, and their reconstruction atlases
     lost (spot: utilisation 0.69 -> 0.50, seam 4.63 -> 5.87); 3 octaves collapsed a 12-part
-    assembly's domains (benchmarks/RESULTS.md, fit_quality_hard, thirty-third and
-    thirty-fourth sessions)."""
+    assembly's domains. L_dist weighs 2x ``fast``'s in the decay (``late_w_dist``): the octaves
+    bend the charts as they open (a 12-part assembly: distortion 2.07 at mid-run), and with
+    ``fast``'s weight two many-part fits ended over 0.5 (truck 0.506, assembly 0.575); with 2x
+    0.28 and 0.32, and 0.16-0.32 on four more shapes at F within 0.14 (the truck 1.0 below)
+    (benchmarks/RESULTS.md, fit_quality_hard, thirty-third and thirty-fourth sessions)."""
     cfg = fast()
     cfg.preset = "detail"
     cfg.model.chart_octaves = 2
     cfg.chart_octaves_from, cfg.chart_octaves_until, cfg.chart_octaves_min_steps = 0.1, 0.5, 2400
+    cfg.late_w_dist = 2 * cfg.loss.w_dist
     return cfg
 
 
 def settle_encoding(cfg: FitConfig) -> FitConfig:
     """A fresh fit of fewer steps than ``chart_octaves_min_steps`` is built without the chart
-    encoding, so its model and saved config say what it ran (a time budget's length is not
-    known yet: :meth:`mna.fit.Fitter.octaves_open` keeps the window shut instead)."""
+    encoding, and without the late distortion weight that relaxes what it bends, so it is the
+    plain fit and its model and saved config say so (a time budget's length is not known yet:
+    :meth:`mna.fit.Fitter.octaves_open` keeps the window shut instead)."""
     if cfg.time_budget is None and cfg.steps < cfg.chart_octaves_min_steps:
         cfg.model.chart_octaves = 0
+        cfg.late_w_dist = 0.0
     return cfg
 
 

@@ -106,6 +106,15 @@ class Fitter:
         share = 1.0 if p >= b else (p - a) / (b - a)
         return cfg.model.chart_octaves * share
 
+    def dist_weight(self) -> float | None:
+        """L_dist's weight this step when it is not ``loss.w_dist`` (None): ``late_w_dist`` in
+        the lr decay, unless the chart encoding it relaxes was kept shut for the run's length
+        (as :func:`mna.config.settle_encoding` drops both from a short steps run)."""
+        cfg = self.cfg
+        if cfg.late_w_dist and self.progress() >= cfg.lr_decay_start and self.encoding is not False:
+            return cfg.late_w_dist
+        return None
+
     def train_step(self) -> StepLosses:
         cfg, model, dev = self.cfg, self.model, self.device
         for group in self.optimizer.param_groups:
@@ -121,7 +130,7 @@ class Fitter:
         targets = torch.from_numpy(pts).float().to(dev)
         normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
         terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets,
-                             surface=self.progress() < cfg.lr_decay_start)
+                             surface=self.progress() < cfg.lr_decay_start, w_dist=self.dist_weight())
         if self.errors is not None:
             self.errors.record(elements, terms.distance[0].cpu().numpy())
         total = terms.total

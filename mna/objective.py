@@ -41,14 +41,15 @@ class LossTerms(NamedTuple):
 
 def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig,
                  z: torch.Tensor | None = None, normals: torch.Tensor | None = None,
-                 labelled: int | None = None, surface: bool = True) -> LossTerms:
+                 labelled: int | None = None, surface: bool = True, w_dist: float | None = None) -> LossTerms:
     """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame).
 
     ``normals (B, T, 3)``: unit surface normals of the targets, for L_orient (``w_orient > 0``;
     without normals the term is 0). ``labelled``: only the first ``labelled`` targets of each
     shape label PU positives (the uniform draw; the rest are hard examples that only pull,
     :mod:`mna.hard_targets`); None = all. ``surface``: False leaves L_surf out this step (a fit's
-    schedule: a fit's lr decay).
+    schedule: a fit's lr decay). ``w_dist``: L_dist's weight this step (None: ``loss.w_dist``;
+    a fit's ``late_w_dist``).
     """
     orient = torch.zeros((), device=uv.device)
     want_surface = surface and cfg.loss.w_surface > 0
@@ -62,7 +63,8 @@ def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cf
         if want_surface:
             surface = _surface_term(model, uv[:, :, :cfg.surface_samples], targets, z)
     w = cfg.loss
-    total = w.w_rec * rec + w.w_occ * occ + w.w_dist * dist + w.w_orient * orient + w.w_surface * surface
+    w_dist = w.w_dist if w_dist is None else w_dist
+    total = w.w_rec * rec + w.w_occ * occ + w_dist * dist + w.w_orient * orient + w.w_surface * surface
     return LossTerms(total, rec, occ, dist, n, orient, d, surface)
 
 

@@ -54,6 +54,8 @@ def configure(cfg, variant: str = "full", method: str = "mna", charts: int | Non
         cfg.model.octaves = 0
     if variant == "no_ldist" or not ldist:
         cfg.loss.w_dist = 0.0
+        if hasattr(cfg, "late_w_dist"):  # a fit config: no distortion term in its decay either
+            cfg.late_w_dist = 0.0
     return cfg
 
 

@@ -83,7 +83,7 @@ def build_config(args: argparse.Namespace):
     if args.no_pe:
         cfg.model.octaves = 0
     if args.no_distortion:
-        cfg.loss.w_dist = 0.0
+        cfg.loss.w_dist = cfg.late_w_dist = 0.0
     if args.atlasnet:
         cfg.ablation.atlasnet = True
     return cfg.validate()

@@ -86,6 +86,42 @@ def test_surface_term_ends_where_the_lr_decays(monkeypatch):
     assert all(l_surf == 0.0 and extra == 0.0 for l_surf, extra in seen[3:])
 
 
+def test_late_distortion_weight_starts_with_the_decay(monkeypatch):
+    """A 10-step fit decaying from 0.3 weighs L_dist by ``loss.w_dist`` (1e-3) at steps 1-3
+    and by ``late_w_dist`` (0.25, 250x: a wrong weight shows) from step 4 on; 0 keeps w_dist."""
+    s = trimesh.creation.icosphere(subdivisions=3, radius=2.5)
+    surface = make_surface(s.vertices, s.faces)
+    real = F.atlas_losses
+    for late, want in ((0.25, [1e-3] * 3 + [0.25] * 7), (0.0, [1e-3] * 10)):
+        cfg = C.tiny()
+        cfg.steps, cfg.lr_decay_start, cfg.loss.w_surface = 10, 0.3, 0.0
+        cfg.loss.w_dist, cfg.late_w_dist = 1e-3, late
+        seen = []
+
+        def spy(*a, **k):
+            t = real(*a, **k)
+            w = cfg.loss
+            rest = w.w_rec * t.rec + w.w_occ * t.occ + w.w_orient * t.orient
+            seen.append(float((t.total - rest).detach()) / float(t.dist.detach()))
+            return t
+
+        monkeypatch.setattr(F, "atlas_losses", spy)
+        fitter = F.Fitter(cfg.validate(), surface, torch.device("cpu"))
+        while not fitter.done():
+            fitter.train_step()
+        assert seen == pytest.approx(want, rel=1e-3)
+
+
+def test_late_distortion_weight_needs_the_term():
+    cfg = C.tiny()
+    cfg.loss.w_dist, cfg.late_w_dist = 0.0, 1e-4
+    with pytest.raises(MnaError, match="late_w_dist"):
+        cfg.validate()
+    cfg.late_w_dist = -1.0
+    with pytest.raises(MnaError, match="late_w_dist"):
+        cfg.validate()
+
+
 def test_chart_octaves_open_over_their_window(monkeypatch):
     """A 10-step fit with 3 chart octaves opening from 0.2 to 0.6 of the run: shut at steps 1-3
     (progress 0-0.2), 3 (p - 0.2) / 0.4 open between, all from step 7 (progress 0.6) on; the
@@ -148,38 +184,43 @@ def test_chart_octaves_stay_shut_in_a_run_shorter_than_their_minimum():
 def test_time_budget_estimates_the_run_length_once_as_the_window_opens():
     """With a 100 s budget and the window from 0.1: 40 steps in 11 s is a pace of 364 steps in
     the run, enough for a minimum of 360 (0.025 * 2 octaves open at progress 0.11), too few
-    for 370. The decision is kept when the pace changes afterwards, and a checkpoint carries it."""
+    for 370. The decision is kept when the pace changes afterwards, and a checkpoint carries it;
+    the late distortion weight (from the decay at 0.6) goes with the encoding."""
     s = trimesh.creation.icosphere(subdivisions=2, radius=2.5)
     surface = make_surface(s.vertices, s.faces)
     for min_steps, opens in ((360, True), (370, False)):
-        fitter = _octave_fitter(surface, min_steps, time_budget=100.0)
+        fitter = _octave_fitter(surface, min_steps, time_budget=100.0, late_w_dist=0.5)
         fitter.step, fitter.elapsed = 5, 9.0  # progress 0.09: before the window, nothing decided
         assert fitter.octaves_open() == 0.0 and fitter.encoding is None
         fitter.step, fitter.elapsed = 40, 11.0
         assert fitter.octaves_open() == pytest.approx(0.05 if opens else 0.0)
         fitter.step, fitter.elapsed = 4000 if not opens else 41, 30.0  # another pace: no second decision
         assert fitter.octaves_open() == pytest.approx(1.0 if opens else 0.0)
+        assert fitter.dist_weight() is None  # progress 0.3: before the decay
+        fitter.elapsed = 70.0
+        assert fitter.dist_weight() == (0.5 if opens else None)
         again = _octave_fitter(surface, min_steps, time_budget=100.0)
         again.load_state_dict(fitter.state_dict())
         assert again.encoding is opens
 
 
 def test_detail_is_fast_with_the_encoding_opened_only_in_long_enough_fresh_runs(tmp_path):
-    """``detail`` differs from ``fast`` in the chart encoding and its window only, with a
-    minimum run length below its 3,000 steps; :func:`mna.config.settle_encoding` builds a
+    """``detail`` differs from ``fast`` in the chart encoding, its window (with a minimum run
+    length below its 3,000 steps) and a stronger L_dist in the decay; :func:`mna.config.settle_encoding` builds a
     shorter steps run without it, leaves a time budget's to the fitter, and the settled
     config survives the config.yaml round trip every run saves."""
     fast, detail = C.to_dict(C.preset("fast")), C.to_dict(C.preset("detail"))
     differ = {k for k in fast if fast[k] != detail[k]}
-    assert {"preset", "model", "chart_octaves_min_steps"} <= differ <= {
-        "preset", "model", "chart_octaves_from", "chart_octaves_until", "chart_octaves_min_steps"}
+    assert {"preset", "model", "chart_octaves_min_steps", "late_w_dist"} <= differ <= {
+        "preset", "model", "chart_octaves_from", "chart_octaves_until", "chart_octaves_min_steps", "late_w_dist"}
+    assert detail["late_w_dist"] > detail["loss"]["w_dist"] == fast["loss"]["w_dist"]
     assert {k for k in fast["model"] if fast["model"][k] != detail["model"][k]} == {"chart_octaves"}
     cfg = C.preset("detail").validate()
     assert cfg.model.chart_octaves == 2 and 0 < cfg.chart_octaves_min_steps <= cfg.steps
-    assert C.settle_encoding(C.preset("detail")).model.chart_octaves == 2
+    assert C.settle_encoding(C.preset("detail")).model.chart_octaves == 2 and cfg.late_w_dist > 0
     short = C.preset("detail")
     short.steps = cfg.chart_octaves_min_steps - 1
-    assert C.settle_encoding(short).model.chart_octaves == 0
+    assert C.settle_encoding(short).model.chart_octaves == 0 and short.late_w_dist == 0.0
     timed = C.preset("detail")
     timed.steps, timed.time_budget = 1, 60.0
     assert C.settle_encoding(timed).model.chart_octaves == 2

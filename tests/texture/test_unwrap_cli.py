@@ -157,6 +157,7 @@ def test_unwrap_fits_fewer_steps_than_a_reconstruction_unless_given_a_budget():
     assert (fast.preset, fast.steps, fast.time_budget) == ("fast", UNWRAP_FIT_STEPS, None)
     assert fast.loss.w_surface == 0.0 < preset("fast").loss.w_surface
     assert config("--preset", "detail").model.chart_octaves == 0 < preset("detail").model.chart_octaves
+    assert config("--preset", "detail").late_w_dist == 0.0 < preset("detail").late_w_dist
     assert fast.loss.w_orient == preset("fast").loss.w_orient > 0  # the rest of the preset is kept
     assert config("--preset", "tiny").steps == preset("tiny").steps < UNWRAP_FIT_STEPS
     assert config("--steps", "4321").steps == 4321
