@@ -343,7 +343,7 @@ def detail() -> FitConfig:
     assembly's domains. L_dist weighs 2x ``fast``'s in the decay (``late_w_dist``): the octaves
     bend the charts as they open (a 12-part assembly: distortion 2.07 at mid-run), and with
     ``fast``'s weight two many-part fits ended over 0.5 (truck 0.506, assembly 0.575); with 2x
-    0.28 and 0.32, and 30-45 % lower on ten more shapes at F within 0.25 (the truck 1.0
+    0.28 and 0.32, and 29-52 % lower on ten more shapes at F within 0.25 (the truck 1.0
     below) (benchmarks/RESULTS.md, fit_quality_hard, thirty-third and thirty-fourth sessions)."""
     cfg = fast()
     cfg.preset = "detail"
