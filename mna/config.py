@@ -203,7 +203,7 @@ class FitConfig(AtlasSettings):
         for name in ("uv_samples", "targets", "checkpoint_every", "log_every"):
             check_int(getattr(self, name), name, 1)
         check_int(self.late_uv_samples, "late_uv_samples", 0)
-        check_float(self.late_w_dist, "late_w_dist", 0, 1e12)
+        check_float(self.late_w_dist, "late_w_dist", 0, MAX_LOSS_WEIGHT)
         if self.late_w_dist > 0 and not self.loss.w_dist > 0:
             raise MnaError("late_w_dist needs loss.w_dist > 0 (the distortion term is off)")
         check_int(self.hard_targets, "hard_targets", 0)
@@ -235,6 +235,8 @@ MAX_GRID = 4096
 MAX_TIME_BUDGET = 3.2e8
 #: positional-encoding octaves: 2^octaves multiplies coordinates in [-1, 1] (float32 keeps 24 bits)
 MAX_OCTAVES = 16
+#: a loss weight above this is a typo
+MAX_LOSS_WEIGHT = 1e12
 DEVICES = ("auto", "cpu", "cuda")
 CHARTS_RULES = ("fixed", "grow")
 
@@ -284,7 +286,7 @@ def validate_model(m: ModelConfig, where: str = "model.", charts_name: str = "--
 def validate_loss(loss: LossConfig, where: str = "loss.") -> None:
     """Loss weights are finite and >= 0; eps > 0."""
     for name in ("w_rec", "w_occ", "w_dist", "w_orient", "w_surface"):
-        check_float(getattr(loss, name), where + name, 0, 1e12)
+        check_float(getattr(loss, name), where + name, 0, MAX_LOSS_WEIGHT)
     check_float(loss.eps, where + "eps", 0, 1, low_open=True)
 
 
