@@ -92,6 +92,13 @@ class AtlasSettings:
     """Positives per chart (and item) whose Jacobian enters L_dist (0 = all, as the paper)."""
     surface_samples: int = 1000
     """UV samples per chart (and item), the first of each step's draw, that enter L_surf."""
+    exclusive_labels: bool = False
+    """PU positives without overlap (an mna extension, not in the paper): a target labels the
+    nearest sample of, among the charts within ``NEAR_TOL`` of its nearest sample, the chart
+    whose label is highest there, instead of the nearest sample overall. Where two charts
+    cover the same surface, the paper's rule hands each of them the targets whose nearest
+    sample happens to be its own, so both domains keep the overlap; here the chart already
+    more sure of the region takes all of it and the other's label falls there."""
     lr: float = 1e-3
     """Adam learning rate."""
     tau: float = 0.5
@@ -127,6 +134,8 @@ class AtlasSettings:
             check_int(getattr(self, key), key, 1)
         check_int(self.dist_samples, "dist_samples", 0)
         check_int(self.surface_samples, "surface_samples", 1)
+        if not isinstance(self.exclusive_labels, bool):
+            raise MnaError(f"exclusive_labels must be true or false, got {self.exclusive_labels!r}")
         check_int(self.grid, name("grid"), 2, MAX_GRID)
         check_float(self.lr, "lr", 0, 1e3, low_open=True)
         check_float(self.tau, "tau", 0, 1, low_open=True, high_open=True)

@@ -25,6 +25,7 @@ from mna import losses
 from mna.config import FitConfig
 from mna.model import NeuralAtlas
 from mna.neighbors import nearest
+from mnacore.tolerances import NEAR_TOL
 
 
 class LossTerms(NamedTuple):
@@ -87,14 +88,19 @@ def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg:
     T = targets.shape[1]
     with torch.no_grad():
         x = model.chart(uv, z).x  # (K, B, N, 3)
-    # per shape: nearest sample (flat k*N + n) of every target -> global key b*K*N + k*N + n
+    logits = model.label_logits(uv, x, z)  # x carries no gradient: L_occ never reaches phi
+    # per shape: the sample (flat k*N + n) each target labels -> global key b*K*N + k*N + n
     keys, labels, dists = [], [], []
     for b in range(B):
-        near = nearest(targets[b], x[:, b].reshape(K * N, 3))
-        idx = near.index.to(uv.device)
+        if cfg.exclusive_labels:
+            idx, dist = _exclusive_positives(targets[b], x[:, b], logits[:, b].detach())
+        else:
+            near = nearest(targets[b], x[:, b].reshape(K * N, 3))
+            idx, dist = near.index, near.dist2.sqrt()
+        idx = idx.to(uv.device)
         labels.append(losses.positive_labels(idx[:labelled], K * N).view(K, N))
         keys.append(idx + b * K * N)
-        dists.append(near.dist2.sqrt())
+        dists.append(dist)
     labels = torch.stack(labels, 1)  # (K, B, N), like the logits
     key = torch.cat(keys)
     uniq, inverse = torch.unique(key, sorted=True, return_inverse=True)
@@ -137,9 +143,24 @@ def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg:
         tgt_n, grp = tgt_n[sel], group[sel]
         orient = torch.stack([losses.orientation_loss(jac[jb == b], tgt_n[jb == b], grp[jb == b])
                               for b in range(B)]).mean()
-    logits = model.label_logits(uv, x, z)  # x carries no gradient: L_occ never reaches phi
     occ = losses.occupancy_loss(logits.reshape(-1), labels.reshape(-1))
     return rec, dist, occ, len(uniq), orient, torch.stack(dists)
+
+
+def _exclusive_positives(targets: torch.Tensor, x: torch.Tensor, logits: torch.Tensor):
+    """``exclusive_labels``: for ``targets (T, 3)``, chart samples ``x (K, N, 3)`` and their label
+    logits ``(K, N)``, the flat index ``k*N + n`` each target labels (its nearest sample in the
+    chart with the highest logit there, among the charts whose nearest sample lies within
+    ``NEAR_TOL`` of the nearest overall) and the distance to the nearest sample overall."""
+    K, N, _ = x.shape
+    per = [nearest(targets, x[k]) for k in range(K)]
+    d = torch.stack([p.dist2 for p in per], 1).sqrt()  # (T, K)
+    ix = torch.stack([p.index for p in per], 1).to(logits.device)
+    best = d.min(1, keepdim=True).values
+    lab = logits[torch.arange(K, device=logits.device)[None, :], ix].to(d.device)
+    lab = torch.where(d <= best + NEAR_TOL, lab, torch.full_like(lab, -torch.inf))
+    k = lab.argmax(1)
+    return k.to(ix.device) * N + ix.gather(1, k.to(ix.device)[:, None])[:, 0], best[:, 0]
 
 
 def _atlasnet_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z):

@@ -25,14 +25,13 @@ from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 
 from mnacore.charts import ChartGrids
+from mnacore.tolerances import NEAR_TOL
 
 from .geometry import MeshProjector
 
 #: barycentric coordinates of the samples of each face: centroid + three toward the corners.
 SAMPLES_BARY = np.array([[1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6],
                          [1 / 6, 1 / 6, 2 / 3]])
-#: charts within this of the nearest one (unit-ball frame, 0.5 % of the diameter) compete on depth.
-NEAR_TOL = 0.01
 #: a sample farther than this from every chart (1 % of the diameter) is not reached by the fit.
 FAR_TOL = 0.02
 #: closest points are exact within this distance (nearest grid vertex beyond; > FAR_TOL + NEAR_TOL).

@@ -261,3 +261,76 @@ def test_objective_surface_term():
         assert int((grads > 0).sum()) == (1 if weight == 0 else moved)
     cfg.loss.w_surface = 0.0
     assert _f(atlas_losses(model, uv, targets, cfg, z).surface) == 0.0
+
+
+def test_exclusive_positives_closed_form():
+    """Three charts sampled on the same grid of a 0.6-wide square: chart 0 in the plane z = 0
+    (logit +1 for x < 0, -1 for x > 0), chart 1 a hair above it (z = 0.004 < NEAR_TOL,
+    logit 0) and chart 2 well above (z = 0.05, logit 10). A target on the plane labels chart
+    0's nearest sample where x < 0 and chart 1's where x > 0, though chart 0's samples are
+    nearer everywhere; chart 2, the most sure but beyond NEAR_TOL, labels none. The distance
+    returned is the nearest overall (chart 0's)."""
+    from mna.objective import _exclusive_positives
+    from mnacore.tolerances import NEAR_TOL
+
+    assert 0.004 < NEAR_TOL < 0.05 - 0.03  # the grid's 0.02 spacing: in-plane offsets < 0.015
+    g = torch.linspace(-0.3, 0.3, 31, dtype=torch.float64)
+    plane = torch.stack(torch.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    N = len(plane)
+    x = torch.stack([torch.cat([plane, torch.full((N, 1), h, dtype=torch.float64)], 1)
+                     for h in (0.0, 0.004, 0.05)])
+    logits = torch.stack([torch.where(plane[:, 0] < 0, 1.0, -1.0).double(), torch.zeros(N, dtype=torch.float64),
+                          torch.full((N,), 10.0, dtype=torch.float64)])
+    gen = torch.Generator().manual_seed(0)
+    xy = (torch.rand(500, 2, generator=gen, dtype=torch.float64) - 0.5) * 0.5
+    xy = xy[xy[:, 0].abs() > 0.02]  # clear of the grid column at x = 0, where the logit flips
+    targets = torch.cat([xy, torch.zeros(len(xy), 1, dtype=torch.float64)], 1)
+    idx, dist = _exclusive_positives(targets, x, logits)
+    want_k = torch.where(xy[:, 0] < 0, 0, 1)
+    assert torch.equal(idx // N, want_k)
+    d_all = torch.cdist(targets, x.reshape(-1, 3))  # (T, K*N)
+    d_want = d_all.reshape(-1, 3, N)[torch.arange(len(xy)), want_k]
+    assert torch.equal(idx % N, d_want.argmin(1))
+    torch.testing.assert_close(dist, d_all.min(1).values, rtol=1e-12, atol=1e-12)
+    right = want_k == 1  # chart 1 took targets that chart 0 is nearer to
+    assert right.sum() > 100 and (dist[right] < d_want[right].min(1).values).all()
+
+
+def test_objective_exclusive_labels_match_brute_force():
+    """With ``exclusive_labels`` L_occ is the BCE of every sample's logit against labels that
+    mark, per target, the sample chosen by brute force (the nearest in the highest-logit chart
+    among those within NEAR_TOL of the nearest sample), and L_rec pulls those samples. Chart 1
+    is a copy of chart 0 with a higher label, so the two rules label different samples."""
+    from mna.objective import atlas_losses
+    from mnacore.tolerances import NEAR_TOL
+
+    cfg, model, uv = _latent_atlas()
+    with torch.no_grad():
+        for name, p in model.chart.named_parameters():
+            p[1] = p[0]
+        model.label.out.b[1] += 3.0
+    B, T, K, N = 2, 40, 3, 50
+    z = torch.randn(B, 4, dtype=torch.float64)
+    with torch.no_grad():
+        x = model.chart(uv, z).x
+        logit = model.label_logits(uv, x, z)
+    targets = x[0, :, :T] + 0.003 * torch.randn(B, T, 3, dtype=torch.float64)
+    labels = torch.zeros(K, B, N, dtype=torch.float64)
+    rec = []
+    for b in range(B):
+        d = torch.cdist(targets[b], x[:, b].reshape(K * N, 3)).reshape(T, K, N)
+        dk, ik = d.min(2)  # (T, K)
+        ok = dk <= dk.min(1, keepdim=True).values + NEAR_TOL
+        at = torch.stack([logit[j, b][ik[:, j]] for j in range(K)], 1)  # (T, K) logit at each nearest
+        k = torch.where(ok, at, -torch.inf).argmax(1)
+        n = ik[torch.arange(T), k]
+        labels[k, b, n] = 1.0
+        rec.append(((targets[b] - x[k, b, n]) ** 2).sum(1).mean())
+    assert labels[1].sum() > 2 * labels[0].sum()  # the copy with the higher label takes most
+    cfg.exclusive_labels = True
+    t = atlas_losses(model, uv, targets, cfg, z)
+    occ = losses.occupancy_loss(logit.reshape(-1), labels.reshape(-1))
+    assert _f(t.occ) == pytest.approx(_f(occ), rel=1e-10)
+    assert _f(t.rec) == pytest.approx(_f(torch.stack(rec).mean()), rel=1e-10)
+    cfg.exclusive_labels = False
+    assert _f(atlas_losses(model, uv, targets, cfg, z).occ) != pytest.approx(_f(occ), rel=1e-3)
