@@ -233,3 +233,14 @@ def test_chart_octaves_min_steps_must_be_a_count():
     cfg.chart_octaves_min_steps = -5
     with pytest.raises(MnaError, match="chart_octaves_min_steps"):
         cfg.validate()
+
+
+def test_exclusive_labels_is_a_switch():
+    """``exclusive_labels`` takes true/false only: from YAML (strict types) and in code."""
+    cfg = C.tiny()
+    cfg.exclusive_labels = 1
+    with pytest.raises(MnaError, match="exclusive_labels"):
+        cfg.validate()
+    with pytest.raises(MnaError, match="exclusive_labels"):
+        C.from_dict({"exclusive_labels": "yes"})
+    assert C.from_dict({"exclusive_labels": True}).validate().exclusive_labels is True
