@@ -98,7 +98,8 @@ class AtlasSettings:
     whose label is highest there, instead of the nearest sample overall. Where two charts
     cover the same surface, the paper's rule hands each of them the targets whose nearest
     sample happens to be its own, so both domains keep the overlap; here the chart already
-    more sure of the region takes all of it and the other's label falls there."""
+    more sure of the region takes all of it and the other's label falls there. A fit applies
+    it in its lr decay only (:meth:`mna.fit.Fitter.exclusive`); a dataset's training throughout."""
     lr: float = 1e-3
     """Adam learning rate."""
     tau: float = 0.5
@@ -223,6 +224,8 @@ class FitConfig(AtlasSettings):
         check_int(self.chart_octaves_min_steps, "chart_octaves_min_steps", 0)
         check_float(self.lr_decay_start, "lr_decay_start", 0, 1)
         check_float(self.lr_final, "lr_final", 0, 1)
+        if self.exclusive_labels and not self.lr_decay_start < 1:
+            raise MnaError("exclusive_labels needs lr_decay_start < 1 (a fit makes its labels exclusive in the lr decay)")
         if not isinstance(self.preset, str):
             raise MnaError(f"preset must be a string, got {self.preset!r}")
         return self
@@ -366,12 +369,14 @@ def detail() -> FitConfig:
 
 def settle_encoding(cfg: FitConfig) -> FitConfig:
     """A fresh fit of fewer steps than ``chart_octaves_min_steps`` is built without the chart
-    encoding, and without the late distortion weight that relaxes what it bends, so it is the
+    encoding, the late distortion weight that relaxes what it bends and the exclusive labels
+    that settle where the finer charts overlap, so it is the
     plain fit and its model and saved config say so (a time budget's length is not known yet:
     :meth:`mna.fit.Fitter.octaves_open` keeps the window shut instead)."""
     if cfg.time_budget is None and cfg.steps < cfg.chart_octaves_min_steps:
         cfg.model.chart_octaves = 0
         cfg.late_w_dist = 0.0
+        cfg.exclusive_labels = False
     return cfg
 
 

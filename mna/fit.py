@@ -115,6 +115,15 @@ class Fitter:
             return cfg.late_w_dist
         return None
 
+    def exclusive(self) -> bool:
+        """Exclusive PU labels this step: ``exclusive_labels`` in the lr decay, the charts placed
+        (from the start, a chart that lost every contested region early was starved and the
+        others stretched over what it held: benchmarks/RESULTS.md, fit_quality_hard, thirty-fifth
+        session); not where the chart encoding was kept shut (the plain fit, as
+        :func:`mna.config.settle_encoding` makes a short steps run)."""
+        cfg = self.cfg
+        return cfg.exclusive_labels and self.progress() >= cfg.lr_decay_start and self.encoding is not False
+
     def train_step(self) -> StepLosses:
         cfg, model, dev = self.cfg, self.model, self.device
         for group in self.optimizer.param_groups:
@@ -130,7 +139,8 @@ class Fitter:
         targets = torch.from_numpy(pts).float().to(dev)
         normals = torch.from_numpy(nrm).float().to(dev)[None] if nrm is not None and cfg.loss.w_orient > 0 else None
         terms = atlas_losses(model, uv, targets[None], cfg, normals=normals, labelled=cfg.targets,
-                             surface=self.progress() < cfg.lr_decay_start, w_dist=self.dist_weight())
+                             surface=self.progress() < cfg.lr_decay_start, w_dist=self.dist_weight(),
+                             exclusive=self.exclusive())
         if self.errors is not None:
             self.errors.record(elements, terms.distance[0].cpu().numpy())
         total = terms.total

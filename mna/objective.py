@@ -42,7 +42,8 @@ class LossTerms(NamedTuple):
 
 def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig,
                  z: torch.Tensor | None = None, normals: torch.Tensor | None = None,
-                 labelled: int | None = None, surface: bool = True, w_dist: float | None = None) -> LossTerms:
+                 labelled: int | None = None, surface: bool = True, w_dist: float | None = None,
+                 exclusive: bool | None = None) -> LossTerms:
     """Weighted losses for ``uv (K, B, N, 2)`` samples and ``targets (B, T, 3)`` (unit-ball frame).
 
     ``normals (B, T, 3)``: unit surface normals of the targets, for L_orient (``w_orient > 0``;
@@ -50,7 +51,8 @@ def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cf
     shape label PU positives (the uniform draw; the rest are hard examples that only pull,
     :mod:`mna.hard_targets`); None = all. ``surface``: False leaves L_surf out this step (a fit's
     schedule: a fit's lr decay). ``w_dist``: L_dist's weight this step (None: ``loss.w_dist``;
-    a fit's ``late_w_dist``).
+    a fit's ``late_w_dist``). ``exclusive``: exclusive PU labels this step (None:
+    ``exclusive_labels``; a fit's lr decay).
     """
     orient = torch.zeros((), device=uv.device)
     want_surface = surface and cfg.loss.w_surface > 0
@@ -59,7 +61,8 @@ def atlas_losses(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cf
         rec, dist, n, d = _atlasnet_terms(model, uv, targets, cfg, z)
         occ = torch.zeros((), device=uv.device)
     else:
-        rec, dist, occ, n, o, d = _mna_terms(model, uv, targets, cfg, z, normals, labelled)
+        exclusive = cfg.exclusive_labels if exclusive is None else exclusive
+        rec, dist, occ, n, o, d = _mna_terms(model, uv, targets, cfg, z, normals, labelled, exclusive)
         orient = o if o is not None else orient
         if want_surface:
             surface = _surface_term(model, uv[:, :, :cfg.surface_samples], targets, z)
@@ -83,7 +86,7 @@ def _surface_term(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, z
 
 
 def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg: FitConfig, z, normals=None,
-               labelled: int | None = None):
+               labelled: int | None = None, exclusive: bool = False):
     K, B, N, _ = uv.shape
     T = targets.shape[1]
     with torch.no_grad():
@@ -92,7 +95,7 @@ def _mna_terms(model: NeuralAtlas, uv: torch.Tensor, targets: torch.Tensor, cfg:
     # per shape: the sample (flat k*N + n) each target labels -> global key b*K*N + k*N + n
     keys, labels, dists = [], [], []
     for b in range(B):
-        if cfg.exclusive_labels:
+        if exclusive:
             idx, dist = _exclusive_positives(targets[b], x[:, b], logits[:, b].detach())
         else:
             near = nearest(targets[b], x[:, b].reshape(K * N, 3))

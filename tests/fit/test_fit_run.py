@@ -97,7 +97,7 @@ def test_resume_after_interrupt_equals_uninterrupted(torus_file, tmp_path, octav
 
 
 def test_a_run_too_short_for_the_encoding_is_the_plain_fit(torus_file, tmp_path):
-    """With 2 chart octaves (and a late distortion weight) but ``chart_octaves_min_steps``
+    """With 2 chart octaves (and a late distortion weight, exclusive labels) but ``chart_octaves_min_steps``
     above its 30 steps, a fresh fit is built and saved without either and ends exactly as the
     plain fit does. A run that opened the encoding keeps it when resumed with fewer steps
     than that minimum."""
@@ -107,12 +107,13 @@ def test_a_run_too_short_for_the_encoding_is_the_plain_fit(torus_file, tmp_path)
         c.model.chart_octaves, c.chart_octaves_from, c.chart_octaves_until = octaves, 0.2, 0.8
         c.chart_octaves_min_steps = min_steps
         c.late_w_dist = 0.5 if octaves else 0.0
+        c.exclusive_labels = bool(octaves)
         return c
 
     fit_run(torus_file, tmp_path / "plain", cfg(0, 31), progress_bar=False, log=lambda s: None)
     fit_run(torus_file, tmp_path / "short", cfg(2, 31), progress_bar=False, log=lambda s: None)
     saved = C.load_yaml(tmp_path / "short" / "config.yaml")
-    assert saved["model"]["chart_octaves"] == 0 and saved["late_w_dist"] == 0.0
+    assert saved["model"]["chart_octaves"] == 0 and saved["late_w_dist"] == 0.0 and not saved["exclusive_labels"]
     assert "chart.window" not in load_model(tmp_path / "short")[0].state_dict()
     assert _metrics(tmp_path / "short") == _metrics(tmp_path / "plain")
     run = tmp_path / "opened"

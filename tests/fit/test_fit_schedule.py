@@ -185,20 +185,21 @@ def test_time_budget_estimates_the_run_length_once_as_the_window_opens():
     """With a 100 s budget and the window from 0.1: 40 steps in 11 s is a pace of 364 steps in
     the run, enough for a minimum of 360 (0.025 * 2 octaves open at progress 0.11), too few
     for 370. The decision is kept when the pace changes afterwards, and a checkpoint carries it;
-    the late distortion weight (from the decay at 0.6) goes with the encoding."""
+    the late distortion weight and the exclusive labels (from the decay at 0.6) go with the encoding."""
     s = trimesh.creation.icosphere(subdivisions=2, radius=2.5)
     surface = make_surface(s.vertices, s.faces)
     for min_steps, opens in ((360, True), (370, False)):
-        fitter = _octave_fitter(surface, min_steps, time_budget=100.0, late_w_dist=0.5)
+        fitter = _octave_fitter(surface, min_steps, time_budget=100.0, late_w_dist=0.5, exclusive_labels=True)
         fitter.step, fitter.elapsed = 5, 9.0  # progress 0.09: before the window, nothing decided
         assert fitter.octaves_open() == 0.0 and fitter.encoding is None
         fitter.step, fitter.elapsed = 40, 11.0
         assert fitter.octaves_open() == pytest.approx(0.05 if opens else 0.0)
         fitter.step, fitter.elapsed = 4000 if not opens else 41, 30.0  # another pace: no second decision
         assert fitter.octaves_open() == pytest.approx(1.0 if opens else 0.0)
-        assert fitter.dist_weight() is None  # progress 0.3: before the decay
+        assert fitter.dist_weight() is None and not fitter.exclusive()  # progress 0.3: before the decay
         fitter.elapsed = 70.0
         assert fitter.dist_weight() == (0.5 if opens else None)
+        assert fitter.exclusive() is opens
         again = _octave_fitter(surface, min_steps, time_budget=100.0)
         again.load_state_dict(fitter.state_dict())
         assert again.encoding is opens
@@ -243,4 +244,28 @@ def test_exclusive_labels_is_a_switch():
         cfg.validate()
     with pytest.raises(MnaError, match="exclusive_labels"):
         C.from_dict({"exclusive_labels": "yes"})
-    assert C.from_dict({"exclusive_labels": True}).validate().exclusive_labels is True
+    assert C.from_dict({"exclusive_labels": True, "lr_decay_start": 0.5}).validate().exclusive_labels is True
+
+
+def test_exclusive_labels_start_with_the_decay(monkeypatch):
+    """A 10-step fit decaying from 0.3 with ``exclusive_labels`` picks its positives the
+    exclusive way at steps 4-10 (one shape: one call a step), the nearest way before; without
+    the switch never. A fit without a decay cannot have them."""
+    import mna.objective as O
+
+    s = trimesh.creation.icosphere(subdivisions=3, radius=2.5)
+    surface = make_surface(s.vertices, s.faces)
+    real = O._exclusive_positives
+    for on, want in ((True, list(range(3, 10))), (False, [])):
+        cfg = C.tiny()
+        cfg.steps, cfg.lr_decay_start, cfg.exclusive_labels = 10, 0.3, on
+        fitter = F.Fitter(cfg.validate(), surface, torch.device("cpu"))
+        seen = []
+        monkeypatch.setattr(O, "_exclusive_positives", lambda *a: (seen.append(fitter.step), real(*a))[1])
+        while not fitter.done():
+            fitter.train_step()
+        assert seen == want
+    cfg = C.tiny()
+    cfg.lr_decay_start, cfg.exclusive_labels = 1.0, True
+    with pytest.raises(MnaError, match="exclusive_labels needs lr_decay_start"):
+        cfg.validate()
