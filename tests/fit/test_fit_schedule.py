@@ -207,13 +207,15 @@ def test_time_budget_estimates_the_run_length_once_as_the_window_opens():
 
 def test_detail_is_fast_with_the_encoding_opened_only_in_long_enough_fresh_runs(tmp_path):
     """``detail`` differs from ``fast`` in the chart encoding, its window (with a minimum run
-    length below its 3,000 steps) and a stronger L_dist in the decay; :func:`mna.config.settle_encoding` builds a
+    length below its 3,000 steps), a stronger L_dist and exclusive labels in the decay;
+    :func:`mna.config.settle_encoding` builds a
     shorter steps run without it, leaves a time budget's to the fitter, and the settled
     config survives the config.yaml round trip every run saves."""
     fast, detail = C.to_dict(C.preset("fast")), C.to_dict(C.preset("detail"))
     differ = {k for k in fast if fast[k] != detail[k]}
-    assert {"preset", "model", "chart_octaves_min_steps", "late_w_dist"} <= differ <= {
-        "preset", "model", "chart_octaves_from", "chart_octaves_until", "chart_octaves_min_steps", "late_w_dist"}
+    assert {"preset", "model", "chart_octaves_min_steps", "late_w_dist", "exclusive_labels"} <= differ <= {
+        "preset", "model", "chart_octaves_from", "chart_octaves_until", "chart_octaves_min_steps", "late_w_dist",
+        "exclusive_labels"}
     assert detail["late_w_dist"] > detail["loss"]["w_dist"] == fast["loss"]["w_dist"]
     assert {k for k in fast["model"] if fast["model"][k] != detail["model"][k]} == {"chart_octaves"}
     cfg = C.preset("detail").validate()
@@ -222,6 +224,7 @@ def test_detail_is_fast_with_the_encoding_opened_only_in_long_enough_fresh_runs(
     short = C.preset("detail")
     short.steps = cfg.chart_octaves_min_steps - 1
     assert C.settle_encoding(short).model.chart_octaves == 0 and short.late_w_dist == 0.0
+    assert cfg.exclusive_labels and not short.exclusive_labels
     timed = C.preset("detail")
     timed.steps, timed.time_budget = 1, 60.0
     assert C.settle_encoding(timed).model.chart_octaves == 2

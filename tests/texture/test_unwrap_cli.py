@@ -143,7 +143,7 @@ def test_unwrap_fits_fewer_steps_than_a_reconstruction_unless_given_a_budget():
     fit has, and the charts' input encoding, which the ``detail`` preset's has, and exclusive labels."""
     import argparse
 
-    from mna.commands.unwrap import UNWRAP_FIT_STEPS, fit_config, for_unwrap, register
+    from mna.commands.unwrap import UNWRAP_FIT_STEPS, fit_config, register
     from mna.config import preset
 
     parser = argparse.ArgumentParser()
@@ -158,9 +158,7 @@ def test_unwrap_fits_fewer_steps_than_a_reconstruction_unless_given_a_budget():
     assert fast.loss.w_surface == 0.0 < preset("fast").loss.w_surface
     assert config("--preset", "detail").model.chart_octaves == 0 < preset("detail").model.chart_octaves
     assert config("--preset", "detail").late_w_dist == 0.0 < preset("detail").late_w_dist
-    exclusive = preset("fast")
-    exclusive.exclusive_labels = True
-    assert not for_unwrap(exclusive).exclusive_labels
+    assert not config("--preset", "detail").exclusive_labels and preset("detail").exclusive_labels
     assert fast.loss.w_orient == preset("fast").loss.w_orient > 0  # the rest of the preset is kept
     assert config("--preset", "tiny").steps == preset("tiny").steps < UNWRAP_FIT_STEPS
     assert config("--steps", "4321").steps == 4321
