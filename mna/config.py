@@ -360,8 +360,9 @@ def detail() -> FitConfig:
     0.28 and 0.32, and 29-52 % lower on ten more shapes at F within 0.25 (the truck 1.0
     below). The finer charts overlap (two charts' domains on the same surface: 51-58 % of the
     domains doubly covered on spot and a genus-4 plate), so the lr decay makes the PU labels
-    exclusive (``exclusive_labels``): under 3 % doubly covered, and F rose on ten of eleven
-    shapes (benchmarks/RESULTS.md, fit_quality_hard, thirty-third to thirty-fifth sessions)."""
+    exclusive (``exclusive_labels``): 1.7 and 2.8 % there (at most 4.6 % on ten shapes), and F
+    rose on ten of eleven shapes (benchmarks/RESULTS.md, fit_quality_hard, thirty-third to
+    thirty-fifth sessions)."""
     cfg = fast()
     cfg.preset = "detail"
     cfg.model.chart_octaves = 2
