@@ -358,11 +358,12 @@ def detail() -> FitConfig:
     bend the charts as they open (a 12-part assembly: distortion 2.07 at mid-run), and with
     ``fast``'s weight two many-part fits ended over 0.5 (truck 0.506, assembly 0.575); with 2x
     0.28 and 0.32, and 29-52 % lower on ten more shapes at F within 0.25 (the truck 1.0
-    below). The finer charts overlap (two charts' domains on the same surface: 51-58 % of the
-    domains doubly covered on spot and a genus-4 plate), so the lr decay makes the PU labels
-    exclusive (``exclusive_labels``): 1.7 and 2.8 % there (at most 4.6 % on ten shapes), and F
-    rose on ten of eleven shapes on seed 0 (on seed 1 it fell on three of four, the truck by
-    1.3) (benchmarks/RESULTS.md, fit_quality_hard, thirty-third to thirty-fifth sessions)."""
+    below). The finer charts overlap (each lays more of itself exactly on the surface, so two
+    domains claim the same area: 51-58 % of the domains doubly covered on two shapes), so the
+    lr decay makes the PU labels exclusive (``exclusive_labels``): 1.7 and 2.8 % there (at
+    most 4.6 % on ten shapes), and F rose on ten of eleven shapes on seed 0 (on seed 1 it fell
+    on three of four, a 13-part one by 1.3) (benchmarks/RESULTS.md, fit_quality_hard,
+    thirty-third to thirty-fifth sessions)."""
     cfg = fast()
     cfg.preset = "detail"
     cfg.model.chart_octaves = 2

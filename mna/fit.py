@@ -110,10 +110,7 @@ class Fitter:
         """L_dist's weight this step when it is not ``loss.w_dist`` (None): ``late_w_dist`` in
         the lr decay, unless the chart encoding it relaxes was kept shut for the run's length
         (as :func:`mna.config.settle_encoding` drops both from a short steps run)."""
-        cfg = self.cfg
-        if cfg.late_w_dist and self.progress() >= cfg.lr_decay_start and self.encoding is not False:
-            return cfg.late_w_dist
-        return None
+        return self.cfg.late_w_dist if self.cfg.late_w_dist and self._late() else None
 
     def exclusive(self) -> bool:
         """Exclusive PU labels this step: ``exclusive_labels`` in the lr decay, the charts placed
@@ -121,8 +118,12 @@ class Fitter:
         others stretched over what it held: benchmarks/RESULTS.md, fit_quality_hard, thirty-fifth
         session); not where the chart encoding was kept shut (the plain fit, as
         :func:`mna.config.settle_encoding` makes a short steps run)."""
-        cfg = self.cfg
-        return cfg.exclusive_labels and self.progress() >= cfg.lr_decay_start and self.encoding is not False
+        return self.cfg.exclusive_labels and self._late()
+
+    def _late(self) -> bool:
+        """In the lr decay of a fit whose chart encoding was not kept shut: where the late
+        distortion weight and the exclusive labels apply."""
+        return self.progress() >= self.cfg.lr_decay_start and self.encoding is not False
 
     def train_step(self) -> StepLosses:
         cfg, model, dev = self.cfg, self.model, self.device

@@ -84,9 +84,11 @@ def for_unwrap(cfg):
     cfg.loss.w_surface = 0.0
     cfg.model.chart_octaves = 0
     cfg.late_w_dist = 0.0
-    # exclusive labels from the first step lengthened the seams on 2 of 5 inputs (bunny 4.46 ->
-    # 5.52, genus2 5.38 -> 6.21), shortened one (plate6 9.10 -> 8.88); the unwrap was measured
-    # without them (benchmarks/RESULTS.md, fit_quality_hard, thirty-fifth session)
+    # the face labels settle where two charts reach a face (texture.assign: depth within
+    # NEAR_TOL), so the fit need not; and its short run is mostly the phase that places the
+    # charts, where exclusive labels starve a chart that loses its contested regions early
+    # (measured from the first step: seams longer on 2 of 5 inputs, benchmarks/RESULTS.md,
+    # fit_quality_hard, thirty-fifth session)
     cfg.exclusive_labels = False
     return cfg
 
