@@ -103,10 +103,12 @@ def _relax_cell(a: dict) -> str:
         return "not relaxed; "
     text = (f"relaxed: energy excess {a['relax_energy_before']:.3f} -> {a['relax_energy_after']:.3f} "
             f"({a['relax_iterations_max']} iterations at most, {a['relax_stopped_by_crossing']} stopped by a crossing)")
-    if a.get("relax_kept") is False:
-        text += (f", NOT kept (coarse utilisation relaxed {a['utilization_coarse_relaxed']:.2f}, "
-                 f"unrelaxed {a['utilization_coarse_unrelaxed']:.2f})")
     return text + "; "
+
+
+def _halvings_cell(a: dict) -> str:
+    cells = [f"{h['cut_length']:.2f} -> {h['utilization']:.2f}" for h in a.get("halvings", [])]
+    return ", ".join(cells) or "none"
 
 
 def section(results: list[dict], args) -> str:
@@ -137,9 +139,9 @@ def section(results: list[dict], args) -> str:
                      f"{a.get('folded_percent_before_orient', float('nan')):.2f} %, reoriented "
                      f"{a.get('reoriented_percent', float('nan')):.2f} %, dropped {a.get('orient_dropped_percent', float('nan')):.3f} %; "
                      f"{_relax_cell(a)}"
-                     f"packing cut: {'yes' if a.get('split_islands') else 'no'} (coarse utilisation "
-                     f"{a.get('utilization_coarse_uncut', float('nan')):.2f} uncut, cuts tried "
-                     f"{', '.join(f'{u:.2f}' for u in a.get('utilization_coarse_cuts', [])) or 'none'}); "
+                     f"packing: {a.get('islands_before_layout', '?')} islands packed "
+                     f"{a.get('utilization_uncut', float('nan')):.2f} as they came, halvings (3D cut length -> "
+                     f"utilisation) {_halvings_cell(a)}; "
                      f"fit: {res['fit_steps']} steps, fscore_mesh "
                      f"{res['fscore_mesh'] if res['fscore_mesh'] is not None else float('nan'):.1f}, distortion_metric "
                      f"{res['fit_distortion_metric']:.3f} (harness on charts.npz: {res['harness_on_charts']:.3f}) |")

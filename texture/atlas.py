@@ -6,11 +6,11 @@
 2. orient (:func:`texture.atlas_stages.orient_stage`): inside-out parts reoriented;
 3. relax (:func:`texture.atlas_stages.relax_stage`): islands re-flattened toward an isometry;
 4. unmirror: every island reads the right way round from its front;
-5. layout (:func:`texture.atlas_stages.choose_layout`): the islands as they are or with one
-   cut, relaxed or not, as :mod:`texture.policy` decides from coarse packings;
-6. pack (:func:`texture.pack.pack_islands`): one texel density for all islands, every island
-   keeping its chart-local UV up to a rigid motion (the distortion loss shares one scale
-   across charts).
+5. layout and pack (:func:`texture.unwrap_layout.choose_layout`, the unwrap's packing
+   search): the islands turned, and halved along short cuts on the surface while that packs
+   tighter, then packed (:func:`texture.pack.pack_islands`) at one texel density for all
+   islands, every island keeping its relaxed UVs up to a rigid motion (the distortion loss
+   shares one scale across charts).
 
 The result is a :class:`UVMesh` in the input frame with UVs in [0,1]^2, plus the
 measurements (:class:`texture.atlas_stats.AtlasStats`).
@@ -27,13 +27,13 @@ from mnacore.frame import Normalization
 from mnacore.uvmesh import UVMesh, make_uv_mesh
 
 from .atlas_config import AtlasConfig
-from .atlas_stages import choose_layout, orient_stage, relax_stage, unmirrored_layout
-from .atlas_stats import AtlasStats, coverage_stats
-from .layouts import prepare
+from .atlas_stages import joined, layout_goal, layout_islands, orient_stage, relax_stage, unmirrored_layout
+from .atlas_stats import AtlasStats, LayoutStats, coverage_stats
+from .layouts import merge, prepare
 from .orient import Reference
-from .pack import Packing, pack_islands
-from .policy import DEFAULT_POLICY, SearchPolicy
+from .pack import Packing
 from .trim import trim_charts
+from .unwrap_layout import choose_layout
 
 __all__ = ["Atlas", "AtlasConfig", "build_atlas"]
 
@@ -45,7 +45,7 @@ class Atlas:
     Attributes:
         mesh: UV mesh in the input frame, UVs in [0,1]^2 (v up).
         chart: (F,) chart id of each face.
-        island: (F,) island id of each face (islands are numbered chart by chart).
+        island: (F,) island id of each face (in the packing search's order).
         normalization: input frame -> unit ball (from charts.npz).
         packing: packer result (scale, utilisation, ...).
         report: the stages' measurements (coverage, doubly covered area, islands, timings).
@@ -68,12 +68,18 @@ class Atlas:
         return self.report.to_json()
 
 
+def _surface(layout) -> tuple[np.ndarray, np.ndarray]:
+    """(xyz, faces) of the prepared pieces as one mesh."""
+    m = merge(layout)
+    return m.xyz, m.faces
+
+
 def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference_points: np.ndarray | None = None,
-                reference: Reference | None = None, policy: SearchPolicy = DEFAULT_POLICY) -> Atlas:
-    """Trim, orient, relax, cut and pack ``charts`` (module docstring).
+                reference: Reference | None = None) -> Atlas:
+    """Trim, orient, relax, lay out and pack ``charts`` (module docstring).
 
     ``reference_points`` (unit frame) for the coverage check; ``reference`` (the input mesh
-    with normals, unit frame) to orient every island outward; ``policy`` for the packing search.
+    with normals, unit frame) to orient every island outward.
     """
     cfg = config or AtlasConfig()
     t0 = time.perf_counter()
@@ -82,22 +88,24 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
     oriented = orient_stage(trimmed.pieces, reference, cfg)
     t1 = time.perf_counter()
     relaxed = relax_stage(oriented.layout, cfg.relax)
-    raw = unmirrored_layout(oriented.layout)
     if relaxed.pieces is None:
-        flat, raw = raw, None
+        flat = unmirrored_layout(oriented.layout)
     else:
         flat = unmirrored_layout([prepare(p) for p in relaxed.pieces])
     t_relax = time.perf_counter()
-    choice = choose_layout(flat, raw, cfg, relaxed.stats, policy)
-    m = choice.merged
-    packing = pack_islands(*m.islands, resolution=cfg.resolution, padding=cfg.padding, plan=choice.plan,
-                           policy=policy)
+    islands, n_faces = layout_islands(flat)
+    if not islands:
+        raise ValueError("no chart has any in-domain surface left: nothing to texture")
+    choice = choose_layout(islands, np.zeros(n_faces, np.int64), layout_goal(cfg))
+    m, packing = joined(choice.islands), choice.packing
     t2 = time.perf_counter()
     mesh = make_uv_mesh(charts.normalization.invert(m.xyz), m.faces, packing.uv, name="atlas")
     report = AtlasStats(
-        charts=int(charts.n_charts), charts_used=int(len(np.unique(m.chart))), islands=int(m.island.max()) + 1,
+        charts=int(charts.n_charts), charts_used=int(len(np.unique(m.chart))), islands=len(choice.islands),
         faces=int(len(m.faces)), trim=trimmed.stats, orient=oriented.stats, relax=relaxed.stats,
-        layout=choice.stats, coverage=coverage_stats(charts, m.xyz, m.faces, reference_points, cfg.seed),
+        layout=LayoutStats.of(choice.stats, len(islands)),
+        # measured before the layout: its halvings keep the surface and only reorder the faces
+        coverage=coverage_stats(charts, *_surface(flat), reference_points, cfg.seed),
         utilization=packing.utilization, packer=packing.packer, uv_scale=packing.scale,
         texels_per_chart_unit=packing.texels_per_unit, resolution=packing.resolution, padding=packing.padding,
         timings={"trim": t_trim - t0, "orient": t1 - t_trim, "relax": t_relax - t1, "pack": t2 - t_relax})

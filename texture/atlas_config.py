@@ -26,14 +26,16 @@ class AtlasConfig:
     """Re-flatten every island toward an isometry before packing (:mod:`texture.relax`;
     ``relax.iterations = 0`` keeps the charts' own UVs)."""
     max_islands: int = 6
-    """Cut the largest island in two when that packs tighter, if the atlas then has at most
-    this many islands (0 = never cut)."""
+    """The island target of the packing search (:func:`texture.atlas_stages.layout_goal`):
+    islands are halved along short cuts on the surface while that packs tighter, never from
+    within this many to past it, one at it only for a first seam's gain (the unwrap's
+    ``pack_first_seam_gain``); an atlas already past it is halved on gain alone. It also
+    bounds the orientation's fragment islands. 0 = never cut."""
     split_gain: float = 0.02
-    """Cut only when utilisation (coarse packing) rises by at least this much: a cut adds a seam."""
+    """A halving is kept only where utilisation rises by at least this much: it adds a seam
+    (the unwrap's ``pack_cut_gain``)."""
     target_utilization: float = 0.6
-    """When neither the uncut islands nor a centroid cut packs this tight (coarse packing),
-    off-centre cuts are packed too: about 8 more coarse searches (a few seconds). And when
-    the relaxed islands' best layout stays below it, the charts' own UVs are laid out too
-    and kept instead if they reach it (``relax_kept``). 0 = never."""
+    """Islands are halved only while the layout packs below this (the unwrap's
+    ``pack_target``; 0 = never)."""
     seed: int = 0
     """Seed of the surface samples used for the coverage check."""

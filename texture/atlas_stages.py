@@ -1,4 +1,4 @@
-"""The stages between trimming and packing: orient, relax, unmirror, choose the layout.
+"""The stages between trimming and packing: orient, relax, unmirror, and the islands handed to the packing search.
 
 Each stage takes the previous one's typed result and decides once; pieces are prepared
 (:func:`texture.layouts.prepare`) once and the prepared values travel with them.
@@ -9,14 +9,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import policy as P
 from .atlas_config import AtlasConfig
 from .atlas_stats import OrientStats, RelaxStats
-from .layout_search import LayoutChoice, search_layouts
-from .layouts import Prepared, island_count, prepare, unmirrored
+from .layouts import Merged, Prepared, island_count, prepare, unmirrored
 from .orient import Reference, orient_pieces
 from .relax import RelaxConfig, relax_meshes
 from .trim import Piece
+from .unwrap_islands import Island
+from .unwrap_layout import MAX_CUTS, LayoutGoal
 
 
 @dataclass(frozen=True)
@@ -108,23 +108,45 @@ def unmirrored_layout(layout: list[Prepared]) -> list[Prepared]:
     return out
 
 
-def choose_layout(relaxed: list[Prepared], raw: list[Prepared] | None, cfg: AtlasConfig,
-                  stats: RelaxStats, policy: P.SearchPolicy = P.DEFAULT_POLICY) -> LayoutChoice:
-    """The layout to pack: of the relaxed islands, or (``raw``, the charts' own UVs, given when
-    the pieces were relaxed) of the unrelaxed ones where :func:`texture.policy.keep_relaxed`
-    says so. Records the choice in ``stats``."""
-    goal = cfg
-    choice = search_layouts(relaxed, goal, policy)
-    if raw is None or not 0 < goal.target_utilization:
-        return choice
-    stats.kept = True
-    if P.utilization(choice.plan) >= goal.target_utilization:
-        return choice
-    other = search_layouts(raw, goal, policy)
-    stats.compared_unrelaxed = True
-    stats.coarse_relaxed = P.utilization(choice.plan)
-    stats.coarse_unrelaxed = other.plan.utilization if other.plan is not None else None
-    if P.keep_relaxed(choice.plan, other.plan, goal.target_utilization):
-        return choice
-    stats.kept = False
-    return other
+def layout_goal(cfg: AtlasConfig) -> LayoutGoal:
+    """The packing search's aim (:func:`texture.unwrap_layout.choose_layout`) from the export's
+    options: its utilisation target and cut gain, and ``max_islands`` as the island target
+    (halvings never take the atlas from within it to past it, one at it must buy a first
+    seam's gain; ``max_islands`` 0: no halvings, only turns)."""
+    return LayoutGoal(resolution=cfg.resolution, padding=cfg.padding, pack_target=cfg.target_utilization,
+                      pack_cut_gain=cfg.split_gain, long_max_islands=cfg.max_islands,
+                      pack_max_cuts=MAX_CUTS if cfg.max_islands > 0 else 0)
+
+
+def layout_islands(layout: list[Prepared]) -> tuple[list[Island], int]:
+    """(the prepared pieces' islands as the packing search takes them, the pieces' face count).
+
+    Each island is its piece's faces of one island id with their own vertices; ``work_faces``
+    and ``work_vertex`` number faces and vertices over the pieces in order, ``label`` is the
+    chart. The pieces are separate meshes, so the atlas is one part
+    (:func:`texture.halving.island_parts`: every face of component 0) and ``max_islands``
+    counts all its islands.
+    """
+    out, f_off, v_off = [], 0, 0
+    for pp in layout:
+        if pp.island is None:
+            continue
+        p = pp.piece
+        for k in range(pp.n_islands):
+            sel = np.flatnonzero(pp.island == k)
+            vid, inv = np.unique(p.faces[sel], return_inverse=True)
+            out.append(Island(inv.reshape(-1, 3).astype(np.int64), np.asarray(p.uv[vid], np.float64),
+                              np.asarray(p.xyz[vid], np.float64), f_off + sel, v_off + vid, int(p.chart)))
+        f_off += len(p.faces)
+        v_off += len(p.xyz)
+    return out, f_off
+
+
+def joined(islands: list[Island]) -> Merged:
+    """The packed islands as one split-vertex mesh (island ``k`` numbered ``k``; its UVs are
+    replaced by the packing's afterwards)."""
+    offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
+    sizes = [len(isl.faces) for isl in islands]
+    return Merged(np.concatenate([isl.xyz for isl in islands]), np.concatenate([isl.uv for isl in islands]),
+                  np.concatenate([isl.faces + offsets[k] for k, isl in enumerate(islands)]),
+                  np.repeat([isl.label for isl in islands], sizes), np.repeat(np.arange(len(islands)), sizes))

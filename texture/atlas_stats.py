@@ -15,7 +15,6 @@ from mnacore.charts import ChartGrids
 from mnacore.pointmetrics import POINTS, chamfer_fscore
 
 from .geometry import sample_surface
-from .layout_search import LayoutStats
 from .trim import TrimStats
 
 
@@ -44,35 +43,49 @@ class OrientStats:
 
 @dataclass
 class RelaxStats:
-    """The relaxation stage: SLIM iterations, islands stopped by a border crossing, the
+    """The relaxation stage: SLIM iterations, islands stopped by a border crossing, and the
     3D-area weighted mean of ``tr g + tr g^-1 - 4`` at the isometric scale before and after
-    (None: not relaxed), and whether the relaxed UVs were kept (None: no choice was made)."""
+    (None: not relaxed)."""
 
     iterations_max: int = 0
     stopped_by_crossing: int = 0
     energy_before: float | None = None
     energy_after: float | None = None
-    kept: bool | None = None
-    compared_unrelaxed: bool = False
-    """Whether the charts' own UVs were laid out too (then the two coarse utilisations are set)."""
-    coarse_relaxed: float | None = None
-    coarse_unrelaxed: float | None = None
 
     @classmethod
     def from_json(cls, atlas: dict) -> RelaxStats:
         """The relaxation's stats back from ``atlas.json``'s ``atlas`` section."""
         return cls(atlas.get("relax_iterations_max", 0), atlas.get("relax_stopped_by_crossing", 0),
-                   atlas.get("relax_energy_before"), atlas.get("relax_energy_after"), atlas.get("relax_kept"),
-                   "utilization_coarse_unrelaxed" in atlas, atlas.get("utilization_coarse_relaxed"),
-                   atlas.get("utilization_coarse_unrelaxed"))
+                   atlas.get("relax_energy_before"), atlas.get("relax_energy_after"))
 
     def to_json(self) -> dict:
         out = {"relax_iterations_max": self.iterations_max, "relax_stopped_by_crossing": self.stopped_by_crossing}
-        out.update(_present([("relax_energy_before", self.energy_before), ("relax_energy_after", self.energy_after),
-                             ("relax_kept", self.kept)]))
-        if self.compared_unrelaxed:
-            out.update(utilization_coarse_relaxed=self.coarse_relaxed,
-                       utilization_coarse_unrelaxed=self.coarse_unrelaxed)
+        out.update(_present([("relax_energy_before", self.energy_before), ("relax_energy_after", self.energy_after)]))
+        return out
+
+
+@dataclass(frozen=True)
+class LayoutStats:
+    """What the packing search did (:func:`texture.unwrap_layout.choose_layout`): the islands
+    handed to it, the utilisation they packed at as they came (turned as packs best), its
+    halvings in order (island rank, axis, position, 3D cut length, utilisation after), and
+    whether xatlas's exhaustive placement was kept."""
+
+    islands_before: int
+    utilization_uncut: float | None
+    halvings: tuple[dict, ...]
+    brute_force: bool
+
+    @classmethod
+    def of(cls, stats: dict, islands_before: int) -> LayoutStats:
+        """From :class:`texture.unwrap_layout.LayoutChoice`'s ``stats``."""
+        return cls(islands_before, stats.get("utilization_uncut"), tuple(stats.get("halvings", ())),
+                   bool(stats.get("brute_force", False)))
+
+    def to_json(self) -> dict:
+        out = {"islands_before_layout": self.islands_before, "split_islands": len(self.halvings)}
+        out.update(_present([("utilization_uncut", self.utilization_uncut)]))
+        out.update(halvings=[dict(h) for h in self.halvings], brute_force=self.brute_force)
         return out
 
 

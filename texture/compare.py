@@ -218,9 +218,6 @@ def _relax_sentence(r: RelaxStats) -> str:
             f" (0 = isometric) {r.energy_before:.3f} -> {r.energy_after:.3f}, at most "
             f"{r.iterations_max} iterations, {r.stopped_by_crossing} stopped by a border "
             "crossing.")
-    if r.kept is False:
-        text += (f" Not kept: relaxed islands packed to {r.coarse_relaxed:.2f} (coarse), the charts' "
-                 f"own UVs to {r.coarse_unrelaxed:.2f}, and the target is 0.6.")
     return text
 
 

@@ -1,9 +1,8 @@
-"""Pieces as islands: each piece prepared once (welded, islands split), merged into one
-UV mesh, or with one island cut in two.
+"""Pieces as islands: each piece prepared once (welded, islands split), or merged into one UV mesh.
 
 A :class:`Prepared` piece is computed once per piece and then shared: by the island
-counts of the orientation stage, the relaxation, the unmirroring and every candidate
-layout of the packing search (the layouts share all pieces but the cut one).
+counts of the orientation stage, the relaxation, the unmirroring and the islands handed
+to the packing search (:func:`texture.atlas_stages.layout_islands`).
 """
 from __future__ import annotations
 
@@ -13,7 +12,6 @@ import numpy as np
 
 from mnacore.triangles import signed_areas
 
-from .clip import UV_COLUMNS, clip_mesh
 from .islands import unique_rows, uv_islands
 from .trim import Piece
 
@@ -137,79 +135,3 @@ def unmirrored(pp: Prepared) -> Piece:
     uv = q.uv.copy()
     uv[flip, 0] *= -1.0
     return Piece(q.chart, q.xyz, uv, q.faces)
-
-
-def cut_island(pieces: list[Piece], k: int, island: int, long_axis: bool = True,
-               fraction: float | None = None) -> list[Piece]:
-    """``pieces`` with island ``island`` of piece ``k`` cut in two by a straight UV line.
-
-    The line runs across the principal axis of the island's UV area (``long_axis``) or along
-    it, through the island's UV centroid (``fraction`` None) or at the position that leaves
-    ``fraction`` of the island's UV area (by face centre) on the low side of the axis: 0.25
-    cuts about a quarter off one end, 0.75 off the other. The cut is an iso-line cut like
-    every other border; the parts become separate pieces (same chart). The result lists the
-    other pieces in order, then the rest of piece ``k``, then the two halves.
-    """
-    if fraction is not None and not 0.0 < fraction < 1.0:
-        raise ValueError(f"cut_island: fraction must lie in (0, 1), got {fraction}")
-    p = pieces[k]
-    sel = uv_islands(p.faces, p.uv) == island
-    out = [q for j, q in enumerate(pieces) if j != k]
-    if (~sel).any():
-        out.append(Piece(p.chart, p.xyz, p.uv, p.faces[~sel]))
-    return out + _halves(Piece(p.chart, p.xyz, p.uv, p.faces[sel]), _cut_field(p, sel, long_axis, fraction))
-
-
-def cut_layout(layout: list[Prepared], k: int, island: int, long_axis: bool = True,
-               fraction: float | None = None) -> list[Prepared]:
-    """:func:`cut_island` on prepared pieces: only the new pieces are prepared."""
-    cut = cut_island([pp.source for pp in layout], k, island, long_axis, fraction)
-    kept = [pp for j, pp in enumerate(layout) if j != k]
-    return kept + [prepare(p) for p in cut[len(kept):]]
-
-
-def _cut_field(p: Piece, sel: np.ndarray, long_axis: bool, fraction: float | None) -> np.ndarray:
-    """(V,) signed distance of every vertex of ``p`` from the cut line of the faces ``sel``."""
-    w = p.uv_area()[sel]
-    centre = p.uv[p.faces[sel]].mean(1)
-    c = (centre * w[:, None]).sum(0) / w.sum()
-    d = centre - c
-    axis = np.linalg.eigh((d * w[:, None]).T @ d)[1][:, -1 if long_axis else 0]
-    at = 0.0
-    if fraction is not None:
-        proj = d @ axis
-        order = np.argsort(proj, kind="stable")
-        cum = np.cumsum(w[order])
-        at = proj[order][min(int(np.searchsorted(cum, fraction * cum[-1])), len(order) - 1)]
-    return (p.uv - c) @ axis - at
-
-
-def _halves(p: Piece, field: np.ndarray, passes: int = 4) -> list[Piece]:
-    """``p`` cut at ``field = 0`` into exactly two islands where possible.
-
-    A straight line across a non-convex island can leave several pieces on one side: every
-    piece but the largest on each side goes over to the other side (its vertices' field
-    changes sign, and the cut is redone), so the cut adds one island, not several.
-    """
-    attrs = np.column_stack([p.xyz, p.uv])
-    field = field.copy()
-    for _ in range(passes):
-        halves, changed = [], False
-        for sign in (1.0, -1.0):
-            c = clip_mesh(attrs, p.faces, sign * field, plane=UV_COLUMNS)
-            half = Piece(p.chart, c.attrs[:, :3], c.attrs[:, 3:5], c.faces)
-            halves.append(half)
-            if len(half.faces) == 0:
-                continue
-            isl = uv_islands(half.faces, half.uv)
-            if isl.max() == 0:
-                continue
-            keep = int(np.argmax(np.bincount(isl, weights=half.uv_area())))
-            verts = c.source_vertex[np.unique(half.faces[isl != keep])]
-            verts = verts[verts >= 0]
-            if len(verts):
-                field[verts] = -sign * np.maximum(np.abs(field[verts]), 1e-9)
-                changed = True
-        if not changed:
-            break
-    return [h for h in halves if len(h.faces)]

@@ -1,34 +1,18 @@
-"""The packing search policy: how hard to search, which layouts to try, when to fall back.
+"""The packing policy: how hard one packing searches, and when it falls back.
 
-Everything the export *decides* about packing is here, as a :class:`SearchPolicy` (the
-knobs) and small pure functions on search results (the decisions); the mechanics that
-carry them out are :mod:`texture.layout_search` (cuts and rounds) and :mod:`texture.pack`
-(the final packing). The export's guarantees do not depend on the policy: whatever it
-says, a packing never overlaps, never mirrors an island, and stays inside the unit square
+The knobs of :func:`texture.pack.pack_islands` are here, as a :class:`SearchPolicy`; which
+layouts (turns, halvings) are packed is :mod:`texture.unwrap_layout`'s search. The
+guarantees do not depend on the policy: whatever it says, a packing never overlaps, never mirrors an island, and stays inside the unit square
 (a shelf packing is the last resort, :mod:`texture.shelf`); the policy only trades time
 for utilisation.
 
-Why the defaults are what they are. xatlas's packer is a heuristic: which island cut
-helps, and which option set packs best, is not predictable from the islands' shapes
-(neither the islands' bounding-box nor convex-hull fill ranks the cuts), so layouts are
-*packed* to be compared, and the number of layouts tried is the cost.
+Why the defaults are what they are. xatlas's packer is a heuristic: which option set packs
+best is not predictable from the islands' shapes, so the option sets are *packed* to be
+compared, and the number of packings tried is the cost.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-from .scale_search import Plan
-
-
-@dataclass(frozen=True)
-class CutSet:
-    """Cuts tried on the ``islands`` largest islands (by UV area): across (True) and/or along
-    (False) their principal axis, at each of ``fractions`` of their area (None = through the
-    UV centroid)."""
-
-    islands: int
-    axes: tuple[bool, ...]
-    fractions: tuple[float | None, ...]
 
 
 @dataclass(frozen=True)
@@ -42,21 +26,6 @@ class SearchPolicy:
     at 12x the time, so it is not tried."""
     max_attempts: int = 16
     """xatlas calls per scale search."""
-    centroid_cuts: CutSet = CutSet(3, (True,), (None,))
-    """Round one: the largest islands cut through their UV centroid, across their long axis
-    (halving the long side; a cut along it never packed best). Three, not two: the third
-    largest island's cut is sometimes the only one to reach the target, and each more costs
-    one coarse search per option set."""
-    off_centre_cuts: CutSet = CutSet(2, (True, False), (0.25, 0.75))
-    """Round two, only while no layout reached the target: a quarter of the area cut off
-    either end of the two largest islands, across and along their axis, with xatlas's default
-    options only (the best off-centre cut was always of one of the two largest islands and
-    packed best with the default options; it lifted fits from about 0.55 to 0.6 where every
-    centroid cut stayed below)."""
-    prune_margin: float = 0.07
-    """A search may give up after its first guess (an unbounded pack) when that implies a
-    utilisation this far below the target: the bounded search ended between 0.01 below and
-    0.065 above the first guess on every layout measured."""
     mirror_tries: int = 5
     """xatlas calls per placement to get every island the right way round before turning
     the rest back in their boxes (:func:`texture.placement.attempt`)."""
@@ -69,53 +38,6 @@ class SearchPolicy:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ValueError(f"SearchPolicy.{name} must be an integer >= {least}, got {value!r}")
-        if not self.prune_margin >= 0:
-            raise ValueError(f"SearchPolicy.prune_margin must be >= 0, got {self.prune_margin!r}")
 
 
 DEFAULT_POLICY = SearchPolicy()
-
-
-def utilization(plan: Plan | None) -> float:
-    """A plan's utilisation, -1 for no plan (never the best)."""
-    return plan.utilization if plan is not None else -1.0
-
-
-def best_cut(plans: list[Plan | None]) -> int:
-    """Index of the best plan among the cut layouts (``plans[1:]``; ``plans[0]`` is uncut)."""
-    return max(range(1, len(plans)), key=lambda i: utilization(plans[i]))
-
-
-def reached(plans: list[Plan | None], target: float) -> bool:
-    """Whether some layout packs at least ``target`` (never, for target 0: "no target")."""
-    return max(utilization(p) for p in plans) >= target > 0
-
-
-def other_options_for(plans: list[Plan | None], target: float) -> list[int]:
-    """Layouts that are searched with the other option sets after xatlas's defaults: every
-    layout while none reached ``target``, else only the uncut islands and the best cut."""
-    return [0, best_cut(plans)] if reached(plans, target) else list(range(len(plans)))
-
-
-def widen(plans: list[Plan | None], target: float) -> bool:
-    """Whether the off-centre round runs: no centroid layout packs ``target``."""
-    return max(p.utilization for p in plans if p is not None) < target
-
-
-def keep_cut(base: Plan, cut: Plan | None, split_gain: float) -> bool:
-    """A cut adds a seam: keep it only when it gains ``split_gain`` of utilisation."""
-    return cut is not None and cut.utilization >= base.utilization + split_gain
-
-
-def off_centre_order(guesses: list, target: float, margin: float) -> list[int]:
-    """Off-centre layouts worth a search, best first guess first: those whose guess (an
-    :class:`texture.scale_search.Estimate` or None) is within ``margin`` of ``target``."""
-    live = (i for i, g in enumerate(guesses) if g is not None and g.utilization >= target - margin)
-    return sorted(live, key=lambda i: (-guesses[i].utilization, i))
-
-
-def keep_relaxed(relaxed: Plan | None, raw: Plan | None, target: float) -> bool:
-    """Relaxed islands are rounder than the charts' near-square domains and can pack looser:
-    the charts' own UVs replace them only when the relaxed layout misses ``target`` and the
-    unrelaxed one reaches it."""
-    return not (utilization(relaxed) < target and raw is not None and raw.utilization >= target)

@@ -71,19 +71,15 @@ def first_guess(isl: IslandSet, resolution, padding, options) -> float:
 
 
 def search(isl: IslandSet, resolution, padding, options, max_attempts, tpu: float | None = None,
-           shrink: float = SHRINK, tol: float = BISECT_TOL, min_estimate: float = 0.0) -> Found | None:
+           shrink: float = SHRINK, tol: float = BISECT_TOL) -> Found | None:
     """The largest valid xatlas placement found, or None.
 
-    Without a starting ``tpu`` the first guess comes from a pack into an unbounded atlas;
-    if the utilisation that guess implies is below ``min_estimate``, the search stops there
-    (None): the bounded search rarely ends far from it (see ``SearchPolicy.prune_margin``).
+    Without a starting ``tpu`` the first guess comes from a pack into an unbounded atlas.
     """
     attempts = 0
     if tpu is None:
         tpu = first_guess(isl, resolution, padding, options)
         attempts = 1
-        if isl.area * tpu**2 / resolution**2 < min_estimate:
-            return None
     good = bad = None  # (tpu, texel positions) of the largest valid / tpu of the smallest invalid
     while attempts < max_attempts:
         if good is not None and bad is not None and bad / good[0] - 1 < tol:
@@ -114,7 +110,6 @@ class SearchJob:
     padding: int
     options: dict = field(default_factory=dict)
     max_attempts: int = 16
-    min_estimate: float = 0.0
     start: float | None = None
 
     def islands(self) -> IslandSet:
@@ -134,8 +129,7 @@ def _coarse_search(job: SearchJob, _shared=None) -> Plan | None:
     isl = job.islands()
     if isl.area <= 0:
         return None
-    found = search(isl, res, pad, job.options, job.max_attempts, job.start, tol=COARSE_BISECT_TOL,
-                   min_estimate=job.min_estimate)
+    found = search(isl, res, pad, job.options, job.max_attempts, job.start, tol=COARSE_BISECT_TOL)
     if found is None:
         return None
     util = isl.verify(found.px / res, res)[1]
@@ -166,17 +160,15 @@ def estimate_layouts(layouts: list[Layout], *, resolution: int = 2048, padding: 
 
 def plan_layouts(layouts: list[Layout], *, candidates: tuple[dict, ...], resolution: int = 2048,
                  padding: int = 8, max_attempts: int = 16, workers: int | None = None,
-                 min_estimate: float = 0.0, starts: list[float | None] | None = None) -> list[Plan | None]:
+                 starts: list[float | None] | None = None) -> list[Plan | None]:
     """The best coarse :class:`Plan` of each layout over the xatlas option sets ``candidates``.
 
     Every layout x candidate search is independent and xatlas holds the GIL, so they run in
-    up to ``workers`` processes; the result is the same as one after the other. A search
-    whose first guess implies a utilisation below ``min_estimate`` gives up after that one
-    xatlas call. ``starts`` (per layout) are first guesses from :func:`estimate_layouts` with
+    up to ``workers`` processes; the result is the same as one after the other. ``starts`` (per layout) are first guesses from :func:`estimate_layouts` with
     the same options as every candidate: the searches start there instead of packing once more.
     """
     starts = starts or [None] * len(layouts)
-    jobs = [SearchJob(uv, faces, island, resolution, padding, opts, max_attempts, min_estimate, start)
+    jobs = [SearchJob(uv, faces, island, resolution, padding, opts, max_attempts, start)
             for (uv, faces, island), start in zip(layouts, starts) for opts in candidates]
     results = parallel_map(_coarse_search, jobs, workers, stall_seconds=XATLAS_STALL_SECONDS)
     n = len(candidates)

@@ -73,7 +73,7 @@ from .unwrap_islands import (
     slit_islands,
     whole_components,
 )
-from .unwrap_layout import choose_layout
+from .unwrap_layout import FIRST_SEAM_GAIN, MAX_CUTS, choose_layout
 
 
 @dataclass
@@ -147,12 +147,12 @@ class UnwrapConfig:
     this utilisation (coarse)."""
     pack_cut_gain: float = 0.02
     """A packing halving adds seam: kept only when it gains this much utilisation (coarse)."""
-    pack_first_seam_gain: float = 0.1
+    pack_first_seam_gain: float = FIRST_SEAM_GAIN
     """A packing halving of a part that flattened as one island (its first seam), or of a part
     at ``long_max_islands`` (past the island target), is kept only for this much utilisation:
     five times ``pack_cut_gain`` (an unrolled cylinder's strip gains 0.25 from it,
     inspired_mesh's open patch 0.22: both are cut; its length split had gained 0.03)."""
-    pack_max_cuts: int = 4
+    pack_max_cuts: int = MAX_CUTS
     """Most packing halvings (0 = only the islands' turns are searched). Each must gain
     ``pack_cut_gain`` and the rounds stop at the target or the first halving that does not pay,
     so the cap only bounds a run of halvings that all pay: a part flattened whole (the eight's

@@ -1,11 +1,15 @@
-"""The unwrap's packing search: which way to turn the islands, and which to halve.
+"""The packing search of the unwrap and of the export: which way to turn the islands, and which to halve.
+
+Both the unwrap (:mod:`texture.unwrap`) and the export's atlas (:mod:`texture.atlas`) pack
+through :func:`choose_layout`; what it aims at is a :class:`LayoutGoal` (the unwrap's
+:class:`texture.unwrap.UnwrapConfig` carries the same fields).
 
 The unwrap's islands are few and large (2-8 on a single-part mesh), and relaxed islands are
 round blobs: their minimum-area bounding rectangles are only 55-75 % full. With so few
 islands xatlas cannot fill the gaps, so utilisation is set by the islands' shapes and turns
 (0.40-0.56 on the benchmark fits with the islands packed as they came). Two things help,
 and which one, and where, is not predictable from the shapes, so layouts are *packed* to be
-compared (as the export's cut rounds do, :mod:`texture.layout_search`):
+compared:
 
 1. **Turns** (:data:`texture.layout_packing.PACK_MODES`). xatlas's own
    ``rotate_charts_to_axis`` turns each island to an axis of its own choosing; turning every
@@ -106,6 +110,26 @@ PACK_CUTS = (LONG_CUTS, np.linspace(0.15, 0.3, 4), np.linspace(0.7, 0.85, 4))
 HALVING_MODES = (0, 2)
 #: the largest islands (3D area) whose halvings are tried
 PACK_CUT_ISLANDS = 3
+#: default utilisation a first seam must buy (``pack_first_seam_gain``; why: UnwrapConfig)
+FIRST_SEAM_GAIN = 0.1
+#: default most packing halvings (``pack_max_cuts``; why: UnwrapConfig)
+MAX_CUTS = 4
+
+
+@dataclass(frozen=True)
+class LayoutGoal:
+    """What :func:`choose_layout` aims at: the fields it reads of its ``cfg``, named and
+    meant as in :class:`texture.unwrap.UnwrapConfig` (which passes itself); the export builds
+    one from its :class:`texture.atlas_config.AtlasConfig`
+    (:func:`texture.atlas_stages.layout_goal`)."""
+
+    resolution: int
+    padding: int
+    pack_target: float
+    pack_cut_gain: float
+    long_max_islands: int
+    pack_first_seam_gain: float = FIRST_SEAM_GAIN
+    pack_max_cuts: int = MAX_CUTS
 
 
 @dataclass
@@ -236,7 +260,8 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
 
 def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
-    connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig`."""
+    connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig` or a
+    :class:`LayoutGoal` (the export's)."""
     cache: dict = {}  # outlines of the islands tried (:func:`outline_arrays`)
     best = best_packed([islands] * len(UNCUT_MODES), list(UNCUT_MODES), cfg, cache)
     if best is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)

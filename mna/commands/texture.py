@@ -21,8 +21,8 @@ def register(subparsers) -> None:
     e.add_argument("--square-size", type=float, default=None,
                    help="checker square size in the unit-ball frame (default 0.1)")
     e.add_argument("--max-islands", type=int, default=6,
-                   help="cut the largest island in two when that packs tighter and the atlas keeps at most "
-                        "this many islands (default 6; 0 = never cut)")
+                   help="halve islands along short cuts while that packs tighter, within this many islands "
+                        "(one more only for a large gain; default 6; 0 = never cut)")
     e.add_argument("--relax", default="8", metavar="N",
                    help="re-flatten every island toward an isometry with at most N SLIM iterations before packing "
                         "(default 8; 0 = keep the charts' own UVs)")

@@ -114,13 +114,18 @@ def test_build_atlas_on_synthetic_sphere(sphere_run, max_islands):
     atlas = build_atlas(charts, AtlasConfig(resolution=256, padding=2, max_islands=max_islands,
                                             relax=RelaxConfig(iterations=0)))
     s = atlas.stats
-    if max_islands == 0:  # the two caps, trimmed at the equator, one island each
-        assert s["islands"] == 2 and s["charts_used"] == 2 and s["split_islands"] == 0
+    assert s["islands_before_layout"] == 2 and s["charts_used"] == 2  # the two caps, trimmed at the equator
+    if max_islands == 0:  # no halvings: one island per cap
+        assert s["islands"] == 2 and s["split_islands"] == 0 and s["halvings"] == []
     else:
-        # two discs pack into at most 2 pi / 16 = 0.39 of a square; one cut in half packs tighter
-        assert s["islands"] == 3 and s["charts_used"] == 2 and s["split_islands"] == 1
-        assert s["utilization_coarse_cut"] >= s["utilization_coarse_uncut"] + 0.02
-        assert s["utilization"] > 2 * np.pi / 16
+        # two discs leave a square's corners empty: the packing search halves them while each
+        # halving gains the split gain (0.02), and every halving adds one island
+        n = s["split_islands"]
+        assert n >= 1 and s["islands"] == 2 + n == int(atlas.island.max()) + 1
+        chain = [s["utilization_uncut"]] + [h["utilization"] for h in s["halvings"]
+                                            if not (h.get("paired") or h.get("after_quarter_turns"))]
+        assert all(b >= a + 0.02 for a, b in zip(chain, chain[1:]))
+        assert s["utilization"] >= chain[-1]
     assert s["doubly_covered_percent"] <= 1.0
     assert s["fscore_drop"] <= 0.5
     assert atlas.mesh.uv.min() >= 0 and atlas.mesh.uv.max() <= 1
@@ -135,6 +140,94 @@ def test_build_atlas_on_synthetic_sphere(sphere_run, max_islands):
     expected = s["uv_scale"] ** 2 * np.pi * (90 / 105) ** 2
     for k in range(2):
         assert per_face[atlas.chart == k].sum() == pytest.approx(expected, rel=0.01)
+
+
+def test_halvings_add_exactly_their_cut_length_of_seam(sphere_run):
+    """The packing search's halvings cut along mesh edges and keep every UV: the atlas's seams
+    (the harness's, unit frame, before normalising by the root of the area) grow by exactly the
+    3D length of the cuts it records, and the faces are those of the uncut atlas."""
+    from mnacore.triangles import triangle_areas
+
+    charts = load_charts(sphere_run / "charts.npz")
+    seams, atlases = [], []
+    for max_islands in (0, 6):
+        a = build_atlas(charts, AtlasConfig(resolution=256, padding=2, max_islands=max_islands,
+                                            relax=RelaxConfig(iterations=0)))
+        m = a.mesh_unit
+        seams.append(measure(m).summary["seam_length"] * np.sqrt(triangle_areas(m.vertices, m.faces).sum()))
+        atlases.append(a)
+    cuts = [h["cut_length"] for h in atlases[1].stats["halvings"]]
+    assert cuts and all(c > 0.5 for c in cuts)  # a cut across a unit hemisphere is not short
+    assert seams[1] - seams[0] == pytest.approx(sum(cuts), rel=1e-9)
+    areas = [np.sort(triangle_areas(a.mesh_unit.vertices, a.mesh_unit.faces)) for a in atlases]
+    np.testing.assert_allclose(areas[1], areas[0], rtol=1e-9)
+
+
+@pytest.mark.parametrize("max_islands", [2, 3])
+def test_max_islands_is_the_search_island_target(sphere_run, max_islands):
+    """``max_islands`` is the island target of the packing search: a halving from within it
+    gains the split gain, one at it (or past it) only the first seam's gain, and without any
+    halving the atlas keeps its two caps."""
+    from texture.atlas_stages import layout_goal
+    from texture.unwrap_layout import FIRST_SEAM_GAIN
+
+    charts = load_charts(sphere_run / "charts.npz")
+    cfg = AtlasConfig(resolution=256, padding=2, max_islands=max_islands, relax=RelaxConfig(iterations=0))
+    goal = layout_goal(cfg)
+    assert (goal.long_max_islands, goal.pack_cut_gain, goal.pack_target) == (max_islands, 0.02, 0.6)
+    assert (goal.resolution, goal.padding) == (256, 2)
+    s = build_atlas(charts, cfg).stats
+    hs, i = s["halvings"], 0
+    before, count = s["utilization_uncut"], 2
+    while i < len(hs):
+        group = hs[i:i + 2] if hs[i].get("paired") else hs[i:i + 1]  # a pair buys both gains together
+        need = 0.0
+        for h in group:
+            assert h["first_seam"] is (count == max_islands)
+            need += FIRST_SEAM_GAIN if h["first_seam"] else 0.02
+            count += 1
+        if not group[-1].get("after_quarter_turns"):  # (that one is judged against the quarter-turned layout)
+            assert group[-1]["utilization"] >= before + need
+        before, i = group[-1]["utilization"], i + len(group)
+    assert s["islands"] == count
+
+
+def test_layout_goal_without_islands_budget_never_halves():
+    from texture.atlas_stages import layout_goal
+
+    assert layout_goal(AtlasConfig(max_islands=0)).pack_max_cuts == 0
+    assert layout_goal(AtlasConfig(max_islands=6)).pack_max_cuts > 0
+
+
+def test_layout_islands_number_faces_and_vertices_over_the_pieces():
+    """Each island of each prepared piece becomes one Island: its own faces and vertices, its
+    chart as label, and face and vertex numbers running over the pieces in order."""
+    from texture.atlas_stages import joined, layout_islands
+    from texture.layouts import prepare
+    from texture.trim import Piece
+
+    g = grid_faces(5)
+    t = np.linspace(0.0, 1.0, 5)
+    u, v = np.meshgrid(t, t, indexing="xy")
+    sq = np.column_stack([u.ravel(), v.ravel()])
+    two = Piece(1, np.column_stack([np.concatenate([sq, sq + 3.0]), np.ones(50)]), np.concatenate([sq, sq + 3.0]),
+                np.concatenate([g, g + 25]))  # two squares apart: two islands of chart 1
+    one = Piece(0, np.column_stack([sq * 2.0, np.zeros(25)]), sq, g)
+    layout = [prepare(one), prepare(two)]
+    islands, n = layout_islands(layout)
+    assert n == 3 * len(g) and len(islands) == 3
+    assert [isl.label for isl in islands] == [0, 1, 1]
+    np.testing.assert_array_equal(np.sort(np.concatenate([isl.work_faces for isl in islands])), np.arange(n))
+    pieces = [pp.piece for pp in layout]
+    face_piece = np.repeat([0, 1], [len(p.faces) for p in pieces])
+    face_local = np.concatenate([np.arange(len(p.faces)) for p in pieces])
+    for isl in islands:  # every corner as in its piece
+        for f, wf in zip(isl.faces, isl.work_faces):
+            p = pieces[face_piece[wf]]
+            np.testing.assert_array_equal(isl.xyz[f], p.xyz[p.faces[face_local[wf]]])
+            np.testing.assert_array_equal(isl.uv[f], p.uv[p.faces[face_local[wf]]])
+    m = joined(islands)
+    assert len(m.faces) == n and m.island.max() == 2 and (np.bincount(m.chart) == [len(g), 2 * len(g)]).all()
 
 
 def test_relaxed_sphere_atlas_keeps_one_scale_and_lowers_distortion(sphere_run):
@@ -206,66 +299,6 @@ def test_islands_touching_at_a_vertex_get_their_own_copy():
         assert np.abs(_uv_area(pk.uv, faces_m[sel])).sum() == pytest.approx(pk.scale ** 2 * 1.0, rel=1e-6)
 
 
-def _rectangle_island(G=41):
-    from texture.trim import Piece
-
-    rows = (G + 1) // 2
-    lin = np.linspace(0.0, 2.0, G)  # a 2 x 1 rectangle of square cells: its long (principal) axis is u
-    u, v = np.meshgrid(lin, lin[:rows], indexing="xy")
-    uv = np.column_stack([u.ravel(), v.ravel()])
-    faces = grid_faces(G)[: 2 * (G - 1) * (rows - 1)]  # the cells of the first rows - 1 rows
-    return Piece(0, np.column_stack([uv, np.zeros(len(uv))]), uv, faces)
-
-
-@pytest.mark.parametrize("fraction", [None, 0.25, 0.75])
-def test_cut_island_leaves_the_asked_area_fraction(fraction):
-    from texture.layouts import cut_island
-
-    p = _rectangle_island()
-    area = p.uv_area().sum()
-    parts = cut_island([p], 0, 0, long_axis=True, fraction=fraction)
-    assert len(parts) == 2
-    areas = sorted(q.uv_area().sum() / area for q in parts)
-    # the cut loses and adds nothing (up to slivers the clip drops where it runs along grid vertices)
-    assert sum(areas) == pytest.approx(1.0, abs=1e-6)
-    want = 0.25 if fraction is not None else 0.5  # the centroid halves a rectangle
-    # the cut sits at a face-centre quantile: within one grid column (1/40 of the length)
-    assert areas[0] == pytest.approx(want, abs=1 / 40)
-    for q in parts:  # a straight cut across the long axis: each part spans the full width
-        assert np.ptp(q.uv[np.unique(q.faces), 1]) == pytest.approx(np.ptp(p.uv[:, 1]))
-    with pytest.raises(ValueError, match="fraction"):
-        cut_island([p], 0, 0, fraction=1.0)
-
-
-def test_search_gives_up_below_min_estimate():
-    from texture.policy import DEFAULT_POLICY
-    from texture.scale_search import plan_layouts
-
-    p = _rectangle_island()
-    island = np.zeros(len(p.faces), np.int64)
-    kw = {"candidates": DEFAULT_POLICY.pack_candidates, "resolution": 256, "padding": 2, "workers": 1}
-    plain = plan_layouts([(p.uv, p.faces, island)], **kw)[0]
-    assert plain is not None and 0.3 < plain.utilization < 1.0
-    # one rectangle cannot fill more than the square: an estimate above 1 prunes every search
-    assert plan_layouts([(p.uv, p.faces, island)], min_estimate=1.01, **kw) == [None]
-
-
-@pytest.mark.parametrize("target", [0.0, 1.0])
-def test_off_centre_cuts_only_below_the_target(sphere_run, target):
-    charts = load_charts(sphere_run / "charts.npz")
-    s = build_atlas(charts, AtlasConfig(resolution=256, padding=2, target_utilization=target)).stats
-    tried = s.get("utilization_coarse_off_centre_cuts")
-    if target == 0.0:
-        assert tried is None
-    else:  # no packing reaches 1: the two caps x 2 axes x 2 positions are packed too
-        assert len(tried) == 8
-        assert s["islands"] == 3 and s["split_islands"] == 1
-        # the kept cut is the best of both rounds
-        found = [u for u in s["utilization_coarse_cuts"] + tried if u is not None]
-        assert s["utilization_coarse_cut"] == max(found)
-        assert s["cut"]["through_centroid"] == (s["cut"]["area_fraction"] == 0.5)
-
-
 def test_unique_rows_matches_numpy():
     from texture.islands import unique_rows
 
@@ -278,160 +311,3 @@ def test_unique_rows_matches_numpy():
     np.testing.assert_array_equal(i2, ids.reshape(-1))
     empty_first, empty_ids = unique_rows(np.zeros((0, 5)))  # no rows: no ids (uv_islands of an empty piece)
     assert len(empty_first) == 0 and len(empty_ids) == 0
-
-
-def _plan(u):
-    from texture.scale_search import Plan
-
-    return None if u is None else Plan(u, 1.0, {}, 1)
-
-
-@pytest.mark.parametrize("relaxed_util, raw_util, kept", [(0.55, 0.62, False), (0.55, 0.58, True),
-                                                          (0.61, 0.70, True), (None, 0.62, False),
-                                                          (0.55, None, True)])
-def test_relaxation_is_dropped_only_when_it_costs_the_utilisation_target(relaxed_util, raw_util, kept):
-    """The charts' own UVs replace the relaxed ones only when the relaxed layouts pack below
-    the target (0.6) and the unrelaxed reach it."""
-    from texture.policy import keep_relaxed
-
-    assert keep_relaxed(_plan(relaxed_util), _plan(raw_util), 0.6) is kept
-
-
-@pytest.mark.parametrize("target", [0.01, 1.0])
-def test_relax_choice_follows_the_recorded_utilisations(sphere_run, target):
-    """The atlas's relaxation choice agrees with the coarse utilisations it records: the
-    unrelaxed layout is searched only when the relaxed one misses the target, dropped only when
-    it reaches it, and the packed UVs are those of the kept variant (distortion)."""
-    charts = load_charts(sphere_run / "charts.npz")
-    got = build_atlas(charts, AtlasConfig(resolution=128, padding=2, max_islands=0, target_utilization=target))
-    raw = build_atlas(charts, AtlasConfig(resolution=128, padding=2, max_islands=0, relax=RelaxConfig(iterations=0)))
-    s = got.stats
-    compared = "utilization_coarse_unrelaxed" in s
-    assert compared is (target == 1.0)  # no packing reaches 1: the charts' own UVs are laid out too
-    if compared:
-        assert s["utilization_coarse_relaxed"] < target
-        assert s["relax_kept"] is not (s["utilization_coarse_unrelaxed"] is not None
-                                       and s["utilization_coarse_unrelaxed"] >= target)
-    else:
-        assert s["relax_kept"] is True
-    d_got = measure(got.mesh).summary["distortion_metric"]
-    d_raw = measure(raw.mesh).summary["distortion_metric"]
-    if s["relax_kept"]:
-        assert d_got < d_raw - RelaxConfig().min_gain
-    else:
-        assert d_got == pytest.approx(d_raw, rel=1e-6)
-
-
-def _flat_piece(width, height, G=9):
-    from texture.trim import Piece
-
-    u, v = np.meshgrid(np.linspace(0.0, width, G), np.linspace(0.0, height, G), indexing="xy")
-    uv = np.column_stack([u.ravel(), v.ravel()])
-    return Piece(0, np.column_stack([uv, np.zeros(len(uv))]), uv, grid_faces(G))
-
-
-@pytest.mark.parametrize("target", [0.02, 0.5, 0.99])
-def test_layout_stage_drops_the_relaxed_uvs_only_for_the_target(target):
-    """The layout stage on real packings: a 16:1 strip (standing in for relaxed islands that
-    pack loosely) against a square (the charts' own UVs, packing tightly). Below both
-    utilisations the relaxed layout is kept and the other never laid out; between them the
-    square's layout is packed instead; above both the relaxed one is kept."""
-    from texture.atlas_stages import choose_layout
-    from texture.atlas_stats import RelaxStats
-    from texture.layouts import prepare
-
-    strip, square = [prepare(_flat_piece(8.0, 0.5))], [prepare(_flat_piece(1.0, 1.0))]
-    stats = RelaxStats()
-    cfg = AtlasConfig(resolution=256, padding=2, max_islands=0, target_utilization=target)
-    choice = choose_layout(strip, square, cfg, stats)
-    if target == 0.02:
-        assert stats.kept is True and not stats.compared_unrelaxed
-        assert choice.plan.utilization >= target
-    else:
-        assert stats.compared_unrelaxed and stats.coarse_relaxed < 0.5 <= stats.coarse_unrelaxed < 0.99
-        assert stats.kept is (target == 0.99)
-    want = square if stats.kept is False else strip
-    np.testing.assert_array_equal(choice.merged.uv, want[0].piece.uv)
-    if stats.compared_unrelaxed:  # the plan packed is the one recorded for the kept layout
-        assert choice.plan.utilization == (stats.coarse_unrelaxed if stats.kept is False else stats.coarse_relaxed)
-
-
-@pytest.mark.parametrize("target, order", [(0.6, [1, 2]), (0.72, [1, 2]), (0.75, [1]), (0.8, [])])
-def test_off_centre_order_prunes_far_guesses_and_ranks_the_rest(target, order):
-    """Guesses 0.5, 0.7, 0.66, 0.2: those more than the margin (0.07) under the target are never
-    searched; the others are searched best guess first."""
-    from texture.policy import off_centre_order
-    from texture.scale_search import Estimate
-
-    guesses = [Estimate(0.5, 50.0), Estimate(0.7, 70.0), Estimate(0.66, 66.0), None, Estimate(0.2, 20.0)]
-    assert off_centre_order(guesses, target, 0.07) == order
-    assert all(guesses[i].utilization >= target - 0.07 for i in order)
-
-
-@pytest.mark.parametrize("above_best_guess", [None, 0.05])
-def test_off_centre_search_stops_at_the_target_and_skips_far_guesses(sphere_run, above_best_guess):
-    """On the sphere's real off-centre cut layouts, one search at a time: only layouts whose
-    first guess is within the policy's margin of the target are searched, best guess first,
-    and the search stops at the first layout that reaches the target (a low target: the first
-    one; a target above every guess: possibly none)."""
-    from texture.layout_search import cut_candidates, off_centre_plans, ranked_islands
-    from texture.layouts import prepare
-    from texture.policy import DEFAULT_POLICY, off_centre_order
-    from texture.scale_search import estimate_layouts
-
-    charts = load_charts(sphere_run / "charts.npz")
-    layout = [prepare(p) for p in trim_charts(charts, AtlasConfig().trim).pieces]
-    wider = cut_candidates(layout, ranked_islands(layout), DEFAULT_POLICY.off_centre_cuts, 6)
-    arrays = [c.islands for c in wider]
-    assert len(arrays) == 8  # two caps x two axes x two positions
-    guesses = estimate_layouts(arrays, resolution=256, padding=2, options=DEFAULT_POLICY.pack_candidates[0])
-    best_guess = max(g.utilization for g in guesses if g is not None)
-    target = 0.01 if above_best_guess is None else best_guess + above_best_guess
-    order = off_centre_order(guesses, target, DEFAULT_POLICY.prune_margin)
-    assert order and order[0] == int(np.argmax([-1 if g is None else g.utilization for g in guesses]))
-    goal = AtlasConfig(resolution=256, padding=2, max_islands=6, target_utilization=target)
-    plans = off_centre_plans(arrays, goal, workers=1)
-    searched = [i for i, p in enumerate(plans) if p is not None]
-    # a prefix of the order (a search may find nothing: then it is None like an unsearched one)
-    k = max(order.index(i) for i in searched) + 1 if searched else 0
-    assert set(searched) <= set(order[:k])
-    reached = [i for i in order[:k] if plans[i] is not None and plans[i].utilization >= target]
-    assert reached == ([order[k - 1]] if reached else [])  # it stopped at the first to reach the target
-    if not reached:
-        assert k == len(order) or not searched
-    if above_best_guess is None:
-        assert searched == [order[0]] and reached == [order[0]]
-
-
-@pytest.mark.parametrize("target", [0.01, 1.0])
-def test_other_options_for_every_layout_until_the_target(target):
-    """Round one packs every layout with xatlas's default options, then the other option sets:
-    for the uncut islands and the best cut once a layout reached the target, else for all."""
-    from texture.policy import best_cut, other_options_for
-
-    plans = [_plan(u) for u in (0.50, 0.55, None, 0.52)]
-    assert best_cut(plans) == 1
-    assert other_options_for(plans, target) == ([0, 1] if target <= 0.55 else [0, 1, 2, 3])
-    assert other_options_for(plans, 0.0) == [0, 1, 2, 3]  # target 0: "no target", never reached
-
-
-@pytest.mark.parametrize("target", [0.0, 0.6, 1.0])
-def test_layout_search_keeps_the_best_layout_only_with_the_split_gain(sphere_run, target):
-    """Whatever the rounds searched, the layout kept is the uncut islands unless the best cut
-    found gains ``split_gain`` over them, and then it is that best cut; its plan packs as recorded."""
-    from texture.layout_search import search_layouts
-    from texture.layouts import island_count, prepare
-
-    charts = load_charts(sphere_run / "charts.npz")
-    cfg = AtlasConfig(resolution=256, padding=2, target_utilization=target, relax=RelaxConfig(iterations=0))
-    layout = [prepare(p) for p in trim_charts(charts, cfg.trim).pieces]
-    assert island_count(layout) == 2  # two caps
-    choice = search_layouts(layout, cfg)
-    s = choice.stats.to_json()
-    cuts = [u for u in s["utilization_coarse_cuts"] + s.get("utilization_coarse_off_centre_cuts", []) if u is not None]
-    split = max(cuts) >= s["utilization_coarse_uncut"] + cfg.split_gain
-    assert s["split_islands"] == int(split)
-    assert int(choice.merged.island.max()) + 1 == 2 + int(split)
-    assert choice.plan.utilization == (max(cuts) if split else s["utilization_coarse_uncut"])
-    if split:
-        assert s["utilization_coarse_cut"] == max(cuts)

@@ -33,15 +33,16 @@ def test_export_writes_textured_assets(fresh_sphere_run, capsys, max_islands):
     assert _files(run) - before == {"mesh.obj", "mesh.mtl", "mesh_texture.png", "mesh.glb", "atlas.json"}
     info = json.loads((run / "atlas.json").read_text())
     a, m = info["atlas"], info["uv_metrics"]
-    # two caps trimmed at the equator; by default one of them is cut in half to pack tighter,
-    # along a straight UV line through its pole: half a great circle more seam
-    islands = 2 if max_islands == 0 else 3
+    # two caps trimmed at the equator; by default the packing search halves them to pack
+    # tighter (two discs leave a square's corners empty), each halving one more island
+    islands = 2 + a["split_islands"]
+    assert a["split_islands"] == 0 if max_islands == 0 else a["split_islands"] >= 1
     assert a["islands"] == islands and m["charts"] == islands
     assert a["doubly_covered_percent"] <= 1.0 and a["fscore_drop"] <= 0.5
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
     assert m["distortion_metric"] < 0.5
-    # seam = the equator (length 2 pi on the unit sphere) [+ the half great circle pi] / sqrt(4 pi)
-    seam = 2 * np.pi + (np.pi if islands == 3 else 0.0)
+    # seam = the equator (length 2 pi on the unit sphere) + the halvings' cuts (unit frame) / sqrt(4 pi)
+    seam = 2 * np.pi + sum(h["cut_length"] for h in a["halvings"])
     assert m["seam_length"] == pytest.approx(seam / np.sqrt(4 * np.pi), rel=0.03)
     back = read_back(run / "mesh.obj")
     assert back.uv.min() >= 0 and back.uv.max() <= 1
@@ -100,7 +101,9 @@ def test_compare_tabulates_every_method(tmp_path, monkeypatch):
         assert {"mesh.obj", "mesh.glb", "mesh_texture.png", "metrics.json"} <= _files(run / sub)
     ours, xa = res["methods"][0], res["methods"][1]
     assert ours["faces"] == xa["faces"]  # the same reconstructed mesh
-    assert ours["charts"] == 3 and xa["charts"] >= 2  # the two caps, one cut in half to pack tighter
+    atlas = json.loads((run / "atlas.json").read_text())["atlas"]
+    # the two caps, halved by the packing search to pack tighter
+    assert ours["charts"] == 2 + atlas["split_islands"] > 2 and xa["charts"] >= 2
     assert ours["seam_length"] <= xa["seam_length"] + 1e-9  # xatlas cannot join our separate islands
     md = (run / "compare.md").read_text()
     assert "| mna | reconstruction |" in md and "xatlas sweep" in md

@@ -189,7 +189,7 @@ def test_any_policy_packs_validly_and_deterministically(name, islands):
 
 
 @pytest.mark.parametrize("field, value", [("mirror_tries", 0), ("max_attempts", 0), ("unmirror_steps", -1),
-                                          ("prune_margin", -0.1), ("mirror_tries", True)])
+                                          ("mirror_tries", True)])
 def test_policy_refuses_settings_that_would_void_the_guarantees(field, value):
     with pytest.raises(ValueError, match=f"SearchPolicy.{field}"):
         SearchPolicy(**{field: value})
