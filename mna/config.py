@@ -353,7 +353,8 @@ def detail() -> FitConfig:
     with them vs 0.34 without at 1,800 steps, 0.30 vs 0.30 at 2,400), so they are the plain
     fit. It is not ``fast`` itself because the finer charts overlap: the domains' doubly
     covered area rose 4-16 % -> 34-59 % on three shapes, and their reconstruction atlases
-    lost (spot: utilisation 0.69 -> 0.50, seam 4.63 -> 5.87); 3 octaves collapsed a 12-part
+    have more islands and seam (spot, with the export's packing search shared with the
+    unwrap: 6 islands, seam 5.51 against 4 and 4.62); 3 octaves collapsed a 12-part
     assembly's domains. L_dist weighs 2x ``fast``'s in the decay (``late_w_dist``): the octaves
     bend the charts as they open (a 12-part assembly: distortion 2.07 at mid-run), and with
     ``fast``'s weight two many-part fits ended over 0.5 (truck 0.506, assembly 0.575); with 2x
