@@ -36,7 +36,7 @@ def test_export_writes_textured_assets(fresh_sphere_run, capsys, max_islands):
     # two caps trimmed at the equator; by default the packing search halves them to pack
     # tighter (two discs leave a square's corners empty), each halving one more island
     islands = 2 + a["split_islands"]
-    assert a["split_islands"] == 0 if max_islands == 0 else a["split_islands"] >= 1
+    assert (a["split_islands"] == 0) if max_islands == 0 else (a["split_islands"] >= 1)
     assert a["islands"] == islands and m["charts"] == islands
     assert a["doubly_covered_percent"] <= 1.0 and a["fscore_drop"] <= 0.5
     assert m["flipped_faces"] == 0 and m["uv_overlap_percent"] == 0.0
