@@ -68,12 +68,6 @@ class Atlas:
         return self.report.to_json()
 
 
-def _surface(layout) -> tuple[np.ndarray, np.ndarray]:
-    """(xyz, faces) of the prepared pieces as one mesh."""
-    m = merge(layout)
-    return m.xyz, m.faces
-
-
 def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference_points: np.ndarray | None = None,
                 reference: Reference | None = None) -> Atlas:
     """Trim, orient, relax, lay out and pack ``charts`` (module docstring).
@@ -93,10 +87,9 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
     else:
         flat = unmirrored_layout([prepare(p) for p in relaxed.pieces])
     t_relax = time.perf_counter()
-    islands, n_faces = layout_islands(flat)
-    if not islands:
-        raise ValueError("no chart has any in-domain surface left: nothing to texture")
-    choice = choose_layout(islands, np.zeros(n_faces, np.int64), layout_goal(cfg))
+    surface = merge(flat)  # (raises where no chart has any surface left)
+    islands = layout_islands(flat)
+    choice = choose_layout(islands, np.zeros(len(surface.faces), np.int64), layout_goal(cfg))
     m, packing = joined(choice.islands), choice.packing
     t2 = time.perf_counter()
     mesh = make_uv_mesh(charts.normalization.invert(m.xyz), m.faces, packing.uv, name="atlas")
@@ -105,7 +98,7 @@ def build_atlas(charts: ChartGrids, config: AtlasConfig | None = None, reference
         faces=int(len(m.faces)), trim=trimmed.stats, orient=oriented.stats, relax=relaxed.stats,
         layout=LayoutStats.of(choice.stats, len(islands)),
         # measured before the layout: its halvings keep the surface and only reorder the faces
-        coverage=coverage_stats(charts, *_surface(flat), reference_points, cfg.seed),
+        coverage=coverage_stats(charts, surface.xyz, surface.faces, reference_points, cfg.seed),
         utilization=packing.utilization, packer=packing.packer, uv_scale=packing.scale,
         texels_per_chart_unit=packing.texels_per_unit, resolution=packing.resolution, padding=packing.padding,
         timings={"trim": t_trim - t0, "orient": t1 - t_trim, "relax": t_relax - t1, "pack": t2 - t_relax})

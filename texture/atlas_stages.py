@@ -11,6 +11,7 @@ import numpy as np
 
 from .atlas_config import AtlasConfig
 from .atlas_stats import OrientStats, RelaxStats
+from .layout_packing import island_arrays
 from .layouts import Merged, Prepared, island_count, prepare, unmirrored
 from .orient import Reference, orient_pieces
 from .relax import RelaxConfig, relax_meshes
@@ -118,14 +119,15 @@ def layout_goal(cfg: AtlasConfig) -> LayoutGoal:
                       pack_max_cuts=MAX_CUTS if cfg.max_islands > 0 else 0)
 
 
-def layout_islands(layout: list[Prepared]) -> tuple[list[Island], int]:
-    """(the prepared pieces' islands as the packing search takes them, the pieces' face count).
+def layout_islands(layout: list[Prepared]) -> list[Island]:
+    """The prepared pieces' islands as the packing search takes them.
 
     Each island is its piece's faces of one island id with their own vertices; ``work_faces``
     and ``work_vertex`` number faces and vertices over the pieces in order, ``label`` is the
     chart. The pieces are separate meshes, so the atlas is one part
     (:func:`texture.halving.island_parts`: every face of component 0) and ``max_islands``
-    counts all its islands.
+    counts all its islands (``work_faces`` number the faces as :func:`texture.layouts.merge`
+    lays the pieces out).
     """
     out, f_off, v_off = [], 0, 0
     for pp in layout:
@@ -139,14 +141,12 @@ def layout_islands(layout: list[Prepared]) -> tuple[list[Island], int]:
                               np.asarray(p.xyz[vid], np.float64), f_off + sel, v_off + vid, int(p.chart)))
         f_off += len(p.faces)
         v_off += len(p.xyz)
-    return out, f_off
+    return out
 
 
 def joined(islands: list[Island]) -> Merged:
     """The packed islands as one split-vertex mesh (island ``k`` numbered ``k``; its UVs are
     replaced by the packing's afterwards)."""
-    offsets = np.cumsum([0] + [len(isl.uv) for isl in islands])
-    sizes = [len(isl.faces) for isl in islands]
-    return Merged(np.concatenate([isl.xyz for isl in islands]), np.concatenate([isl.uv for isl in islands]),
-                  np.concatenate([isl.faces + offsets[k] for k, isl in enumerate(islands)]),
-                  np.repeat([isl.label for isl in islands], sizes), np.repeat(np.arange(len(islands)), sizes))
+    uv, faces, island = island_arrays(islands)
+    chart = np.repeat([isl.label for isl in islands], [len(isl.faces) for isl in islands])
+    return Merged(np.concatenate([isl.xyz for isl in islands]), uv, faces, chart, island)
