@@ -9,6 +9,8 @@ from mnacore.errors import MnaError
 
 
 def register(subparsers) -> None:
+    from mna import config as C
+
     p = subparsers.add_parser("fit", help="fit a Minimal Neural Atlas to a mesh or point cloud",
                               description="Fit a neural atlas of K charts to INPUT and write the run folder RUN.")
     p.add_argument("input", metavar="INPUT", help="mesh (.obj .ply .off .stl .glb) or point cloud (.ply .xyz .npy .npz)")
@@ -16,9 +18,10 @@ def register(subparsers) -> None:
     p.add_argument("--charts", default=None, metavar="K|auto",
                    help="K charts throughout, or auto: start with 3 and add charts (up to 6) where the coverage "
                         "stalls")
-    p.add_argument("--preset", default="fast",
-                   help="fast (default), detail (fast with the charts' input encoded: finer "
-                   "reconstructions in runs of 2,400 steps or more), paper or tiny")
+    p.add_argument("--preset", default=C.DEFAULT_PRESET,
+                   help=f"{C.DEFAULT_PRESET} (default: fast with the charts' input encoded, finer reconstructions; "
+                   f"runs under {C.preset('detail').chart_octaves_min_steps:,} steps are fast), fast (fewer "
+                   "islands in the textured reconstruction), paper or tiny")
     p.add_argument("--config", default=None, metavar="YAML", help="start from a saved config.yaml instead of a preset")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"])

@@ -232,6 +232,25 @@ def test_detail_is_fast_with_the_encoding_opened_only_in_long_enough_fresh_runs(
     assert C.to_dict(C.from_dict(C.load_yaml(tmp_path / "config.yaml"))) == C.to_dict(short)
 
 
+def test_mna_fit_without_a_preset_fits_detail_and_a_short_run_is_the_fast_fit():
+    """``mna fit`` with no ``--preset`` builds ``detail`` (the default budget opens its
+    encoding); a run shorter than its minimum (the demo's 1,200 steps) settles to ``fast``'s
+    config in every field a fit reads (only the name and the shut window's bounds differ)."""
+    from mna.cli import build_parser
+    from mna.commands.fit import build_config
+
+    def config(*argv):
+        return build_config(build_parser().parse_args(["fit", "in.ply", "-o", "run", *argv]))
+
+    assert C.to_dict(config()) == C.to_dict(C.preset("detail").validate())
+    assert C.settle_encoding(config()).model.chart_octaves == 2
+    short = C.to_dict(C.settle_encoding(config("--steps", "1200")))
+    fast = C.to_dict(C.settle_encoding(config("--steps", "1200", "--preset", "fast")))
+    assert short["steps"] == fast["steps"] == 1200 and short["preset"] == "detail"
+    assert {k for k in fast if fast[k] != short[k]} <= {"preset", "chart_octaves_from", "chart_octaves_until",
+                                                        "chart_octaves_min_steps"}
+
+
 def test_chart_octaves_min_steps_must_be_a_count():
     cfg = C.tiny()
     cfg.chart_octaves_min_steps = -5
