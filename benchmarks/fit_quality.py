@@ -5,7 +5,7 @@
     .venv/bin/python benchmarks/fit_quality.py --hard --steps 3000 --curve-every 300   # section fit_quality_hard
     python benchmarks/fit_quality.py --device cuda --budget 60      # GPU: section fit_quality_cuda
 
-For every mesh in ../shared/data/meshes: the ``fast`` preset with 3 charts (and 1 chart on
+For every mesh in ../shared/data/meshes: ``--preset`` (default ``mna fit``'s) with 3 charts (and 1 chart on
 the open surfaces) under a wall-clock budget, then DESIGN's metrics; next to each, the
 "oracle" F-score of two independent 25,000-point samples of the input surface (the
 ceiling at this point count). Also steps/s of the ``paper`` preset on this machine.
@@ -67,8 +67,9 @@ def paper_steps_per_second(path: Path, steps: int, device: str = "cpu") -> float
     return steps / (time.perf_counter() - t0)
 
 
-def run_one(path: Path, charts: int, budget: float, work: Path, device: str = "cpu") -> dict:
-    cfg = C.fast()
+def run_one(path: Path, charts: int, budget: float, work: Path, device: str = "cpu",
+            preset: str = C.DEFAULT_PRESET) -> dict:
+    cfg = C.preset(preset)
     cfg.model.charts = charts
     cfg.time_budget = budget
     cfg.device = device
@@ -119,7 +120,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="fit on this device (default cpu; cuda writes the section fit_quality_cuda)")
     ap.add_argument("--hard", action="store_true",
                     help="hard shapes (genus 4, fine relief, thin limbs, many parts) as curves; see fit_curves.py")
-    ap.add_argument("--steps", type=int, default=3000, help="--hard: steps per fit (default: the fast preset's 3000)")
+    ap.add_argument("--preset", default=C.DEFAULT_PRESET,
+                    help=f"fit preset (default {C.DEFAULT_PRESET}, mna fit's; `detail` opens its encoding only in "
+                    "runs long enough, which under --budget depends on the machine's pace)")
+    ap.add_argument("--steps", type=int, default=3000, help="--hard: steps per fit (default: the presets' 3000)")
     ap.add_argument("--curve-every", type=int, default=300, help="--hard: score every this many steps")
     ap.add_argument("--charts", default="3", help="--hard: charts per fit, or auto (3, grown where coverage stalls)")
     ap.add_argument("--hard-targets", type=int, default=None, help="--hard: extra hard targets per step "
@@ -140,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, k in jobs:
         path = args.meshes / name
         oracle.setdefault(name, oracle_fscore(path))
-        r = run_one(path, k, args.budget, args.work, args.device)
+        r = run_one(path, k, args.budget, args.work, args.device, args.preset)
         rows.append(r)
         print(f"{name} K={k}: F_mesh {r['fscore_mesh']:.2f} (oracle {oracle[name]:.2f}), "
               f"d_metric {r['distortion_metric']:.3f}, {r['steps']} steps, {r['sps']:.2f} steps/s", flush=True)
@@ -148,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.paper_steps and (args.meshes / "bunny.off").is_file():
         paper_sps = paper_steps_per_second(args.meshes / "bunny.off", args.paper_steps, args.device)
         print(f"paper preset: {paper_sps:.2f} steps/s", flush=True)
-    cfg = C.fast()
+    cfg = C.preset(args.preset)
     section = "fit_quality" if args.device == "cpu" else "fit_quality_cuda"
     if args.device == "cuda":
         where = f"{torch.cuda.get_device_name(0)} (CUDA {torch.version.cuda}), host {os.cpu_count()} cores"
@@ -157,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     flags = "" if args.device == "cpu" else f" --device {args.device}"
     text = (
         f"## {section}\n\n"
-        f"`benchmarks/fit_quality.py --budget {args.budget:.0f}{flags}`: preset `fast` (width {cfg.model.chart_width}, "
+        f"`benchmarks/fit_quality.py --budget {args.budget:.0f}{flags} --preset {args.preset}`: preset "
+        f"`{args.preset}` (width {cfg.model.chart_width}, "
         f"{cfg.uv_samples} UV samples/chart, {cfg.targets} fresh targets/step, L_dist on {cfg.dist_samples} "
         f"positives/chart, lr {cfg.lr} with cosine decay from {cfg.lr_decay_start:.0%} of the budget), seed 0, "
         f"{args.budget:.0f} s of fitting per mesh. Machine: {platform.machine()}, {os.cpu_count()} cores, "
@@ -190,7 +195,7 @@ def hard_main(args) -> int:
         oracle = oracle_fscore(path)
         print(f"{path.name}: oracle F {oracle:.2f}", flush=True)
         row = fit_curves.curve(path, args.steps, args.curve_every, charts=args.charts, device=args.device,
-                               hard_targets=args.hard_targets, threads=args.threads)
+                               hard_targets=args.hard_targets, threads=args.threads, preset=args.preset)
         fit_curves.save_row(cache, {**row, "oracle": oracle, "load": load}, args.charts)
     rows = fit_curves.load_rows(cache)
     if not rows:
@@ -198,11 +203,12 @@ def hard_main(args) -> int:
         return 2
     fig = (args.work if args.no_write else ROOT / "benchmarks") / "fit_quality_hard"
     fit_curves.curves_figure(rows, fig)
-    cfg = C.fast()
+    cfg = C.preset(args.preset)
     text = (
         "## fit_quality_hard\n\n"
-        "`benchmarks/fit_quality.py --hard --steps N --curve-every M [--charts K|auto] [--hard-targets H] "
-        f"[--threads T]`: preset `fast` (width {cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart, "
+        "`benchmarks/fit_quality.py --hard --steps N --curve-every M [--preset P] [--charts K|auto] "
+        f"[--hard-targets H] [--threads T]`: the row's preset (`{args.preset}` in this run; width "
+        f"{cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart, "
         f"{cfg.targets} uniform targets/step), seed 0, on {args.device} ({platform.machine()}, {os.cpu_count()} cores, "
         f"torch {torch.__version__}). One row per shape and variant (K charts; `3 -> K (auto)`: started with 3 "
         "and grown where coverage stalled, `mna.grow`; hard targets: extra targets per step where the charts err most, "
