@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/atlas_vs_xatlas.py                         # all meshes, 300 s fit each
     .venv/bin/python benchmarks/atlas_vs_xatlas.py --only bunny --time-budget 120 --no-write
 
-Per mesh in ../shared/data/meshes: ``mna fit`` (fast preset, 3 charts, ``--time-budget``),
+Per mesh in ../shared/data/meshes: ``mna fit`` (``--preset``, default ``mna fit``'s; 3 charts;
+``--steps`` or ``--time-budget``),
 ``mna extract --grid G`` (default 128: xatlas's time grows quickly with the face count,
 about a minute at G = 128 and five at G = 256 on 2 cores), then ``mna export`` and
 ``mna compare`` (texture.pipeline.export_run / texture.compare.compare_run), and the
@@ -42,7 +43,9 @@ def _mna(*args: str) -> float:
     return time.perf_counter() - t0
 
 
-def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size: int, reuse: bool) -> dict:
+def run_one(mesh: Path, work: Path, budget: list[str], grid: int, sweep: bool, size: int, reuse: bool,
+            preset: str) -> dict:
+    """``budget``: the fit's ``--steps N`` or ``--time-budget S`` arguments."""
     from texture.compare import compare_run
     from texture.pipeline import export_run
 
@@ -51,8 +54,7 @@ def run_one(mesh: Path, work: Path, budget: float, grid: int, sweep: bool, size:
     if reuse and timing_file.is_file() and (run / "charts.npz").is_file():
         t_fit, t_extract = json.loads(timing_file.read_text())
     else:
-        t_fit = _mna("fit", str(mesh), "-o", str(run), "--preset", "fast", "--charts", "3",
-                     "--time-budget", str(budget), "--no-progress")
+        t_fit = _mna("fit", str(mesh), "-o", str(run), "--preset", preset, "--charts", "3", *budget, "--no-progress")
         t_extract = _mna("extract", str(run), "--grid", str(grid))
         timing_file.write_text(json.dumps([t_fit, t_extract]))
     export = export_run(run, size=size, padding=8).to_json()
@@ -115,8 +117,8 @@ def section(results: list[dict], args) -> str:
     head = ("| mesh | method | faces | charts | seam length | distortion metric | conformal | area | "
             "flipped+folded % | undecided % | overlap % | utilization | UV time s | total s | targets |")
     lines = [f"## {SECTION}", "",
-             f"`benchmarks/atlas_vs_xatlas.py` ({time.strftime('%Y-%m-%d')}): `mna fit` fast preset, 3 charts, "
-             f"{args.time_budget:g} s budget; `mna extract --grid {args.grid}`; texture {args.size}², padding 8. "
+             f"`benchmarks/atlas_vs_xatlas.py` ({time.strftime('%Y-%m-%d')}): `mna fit` {args.preset} preset, 3 charts, "
+             f"{_budget_text(args)}; `mna extract --grid {args.grid}`; texture {args.size}², padding 8. "
              "One harness (`texture.harness.measure`, unit-ball frame, input mesh as reference) for every row. "
              "`mna` = our packed atlas; `xatlas` = xatlas (defaults, unit-ball frame) on the *same* reconstructed "
              "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + orient + relax + pack, xatlas = its "
@@ -149,6 +151,14 @@ def section(results: list[dict], args) -> str:
     return "\n".join(lines)
 
 
+def _budget(args) -> list[str]:
+    return ["--steps", str(args.steps)] if args.steps else ["--time-budget", str(args.time_budget)]
+
+
+def _budget_text(args) -> str:
+    return f"{args.steps} steps" if args.steps else f"{args.time_budget:g} s budget"
+
+
 def write_section(text: str) -> None:
     """Replace (or append) our section of RESULTS.md, re-read just before writing."""
     current = RESULTS.read_text() if RESULTS.is_file() else "# Benchmark results\n"
@@ -162,7 +172,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", type=Path, default=MESHES, help=f"mesh folder (default {MESHES})")
     ap.add_argument("--only", default="", help="comma-separated mesh stems (default: all)")
-    ap.add_argument("--time-budget", type=float, default=300.0, help="fit seconds per mesh (default 300)")
+    from mna.config import DEFAULT_PRESET
+
+    ap.add_argument("--preset", default=DEFAULT_PRESET, help=f"mna fit --preset (default {DEFAULT_PRESET}, mna fit's)")
+    budget = ap.add_mutually_exclusive_group()
+    budget.add_argument("--time-budget", type=float, default=300.0, help="fit seconds per mesh (default 300)")
+    budget.add_argument("--steps", type=int, default=None,
+                        help="fit steps per mesh instead (the same fit on any machine; `detail` opens its encoding "
+                        "from 2,400)")
     ap.add_argument("--grid", type=int, default=128, help="mna extract --grid (default 128)")
     ap.add_argument("--size", type=int, default=2048, help="texture size (default 2048)")
     ap.add_argument("--sweep", action="store_true", help="also run compare's xatlas sweep")
@@ -179,7 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     results = []
     for mesh in meshes:
         print(f"== {mesh.name}", flush=True)
-        results.append(run_one(mesh, args.work, args.time_budget, args.grid, args.sweep, args.size, args.reuse))
+        results.append(run_one(mesh, args.work, _budget(args), args.grid, args.sweep, args.size, args.reuse,
+                               args.preset))
         text = section(results, args)
         if not args.no_write:
             write_section(text)  # after every mesh, so a long run leaves partial results
