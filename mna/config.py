@@ -383,6 +383,20 @@ def settle_encoding(cfg: FitConfig) -> FitConfig:
     return cfg
 
 
+def encoding_summary(cfg: FitConfig) -> str:
+    """What a fit's log says of the charts' encoding (after :func:`settle_encoding`): a
+    default ``detail`` run too short for it is the plain fit, which its user should read."""
+    octaves = cfg.model.chart_octaves
+    if octaves and cfg.time_budget is not None:
+        return f"chart encoding: {octaves} octaves if the budget's pace reaches {cfg.chart_octaves_min_steps:,} steps"
+    if octaves:
+        return f"chart encoding: {octaves} octaves"
+    named = PRESETS.get(cfg.preset)
+    if named is not None and named().model.chart_octaves:
+        return f"chart encoding: off (runs under {cfg.chart_octaves_min_steps:,} steps are the plain fit)"
+    return ""
+
+
 PRESETS = {"fast": fast, "detail": detail, "paper": paper, "tiny": tiny}
 #: ``mna fit``'s preset when none is named: ``detail`` is ``fast`` wherever a run is too short
 #: to open its encoding (under ``chart_octaves_min_steps``), and in the default 3,000 steps it

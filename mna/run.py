@@ -142,8 +142,9 @@ def _optimise(fitter: Fitter, cfg: FitConfig, surface: Surface, out: Path, input
             log(f"removed what was made from the earlier charts ({', '.join(stale)}): run mna export, compare, "
                 f"render again after the fit")
     config_mod.save_yaml(out / CONFIG, run_config_dict(cfg, str(input_path)))
+    encoding = config_mod.encoding_summary(cfg)
     log(f"fitting {Path(input_path).name} ({'mesh' if surface.is_mesh else 'point cloud'}) with "
-        f"{cfg.model.charts} chart(s), preset {cfg.preset}, device {device}")
+        f"{cfg.model.charts} chart(s), preset {cfg.preset}{', ' + encoding if encoding else ''}, device {device}")
     t0 = time.perf_counter()
     saved_charts = cfg.model.charts
 

@@ -251,6 +251,21 @@ def test_mna_fit_without_a_preset_fits_detail_and_a_short_run_is_the_fast_fit():
                                                         "chart_octaves_min_steps"}
 
 
+def test_the_fit_log_says_whether_the_chart_encoding_is_on():
+    """A default run says its encoding is on; one too short for it says it is the plain fit
+    (with the settled minimum); ``fast`` says nothing of it."""
+    long = C.settle_encoding(C.preset("detail"))
+    assert C.encoding_summary(long) == "chart encoding: 2 octaves"
+    short = C.preset("detail")
+    short.steps = 1200
+    assert C.encoding_summary(C.settle_encoding(short)) == \
+        "chart encoding: off (runs under 2,400 steps are the plain fit)"
+    timed = C.preset("detail")
+    timed.time_budget = 60.0
+    assert "if the budget's pace reaches 2,400 steps" in C.encoding_summary(C.settle_encoding(timed))
+    assert C.encoding_summary(C.preset("fast")) == ""
+
+
 def test_chart_octaves_min_steps_must_be_a_count():
     cfg = C.tiny()
     cfg.chart_octaves_min_steps = -5
