@@ -392,9 +392,12 @@ def encoding_summary(cfg: FitConfig) -> str:
     if octaves:
         return f"chart encoding: {octaves} octaves"
     named = PRESETS.get(cfg.preset)
-    if named is not None and named().model.chart_octaves:
+    if named is None or not named().model.chart_octaves:
+        return ""
+    if cfg.time_budget is None and cfg.steps < cfg.chart_octaves_min_steps:
         return f"chart encoding: off (runs under {cfg.chart_octaves_min_steps:,} steps are the plain fit)"
-    return ""
+    # a run resumed for more steps keeps the model it was started with
+    return "chart encoding: off (the run was started without it; resuming keeps that)"
 
 
 PRESETS = {"fast": fast, "detail": detail, "paper": paper, "tiny": tiny}

@@ -263,6 +263,9 @@ def test_the_fit_log_says_whether_the_chart_encoding_is_on():
     timed = C.preset("detail")
     timed.time_budget = 60.0
     assert "if the budget's pace reaches 2,400 steps" in C.encoding_summary(C.settle_encoding(timed))
+    resumed = C.settle_encoding(short)
+    resumed.steps = 3000  # ``--resume --steps 3000`` of that run: still the plain fit
+    assert C.encoding_summary(resumed) == "chart encoding: off (the run was started without it; resuming keeps that)"
     assert C.encoding_summary(C.preset("fast")) == ""
 
 
