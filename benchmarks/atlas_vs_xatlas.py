@@ -29,6 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from mna.config import DEFAULT_PRESET  # noqa: E402
 from mnacore.atomic import write_text  # noqa: E402
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
@@ -172,8 +173,6 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", type=Path, default=MESHES, help=f"mesh folder (default {MESHES})")
     ap.add_argument("--only", default="", help="comma-separated mesh stems (default: all)")
-    from mna.config import DEFAULT_PRESET
-
     ap.add_argument("--preset", default=DEFAULT_PRESET, help=f"mna fit --preset (default {DEFAULT_PRESET}, mna fit's)")
     budget = ap.add_mutually_exclusive_group()
     budget.add_argument("--time-budget", type=float, default=300.0, help="fit seconds per mesh (default 300)")

@@ -19,9 +19,9 @@ def register(subparsers) -> None:
                    help="K charts throughout, or auto: start with 3 and add charts (up to 6) where the coverage "
                         "stalls")
     p.add_argument("--preset", default=C.DEFAULT_PRESET,
-                   help=f"{C.DEFAULT_PRESET} (default: fast with the charts' input encoded, finer reconstructions; "
-                   f"runs under {C.preset('detail').chart_octaves_min_steps:,} steps are fast), fast (fewer "
-                   "islands in the textured reconstruction), paper or tiny")
+                   help=f"detail (fast with the charts' input encoded, finer reconstructions; runs under "
+                   f"{C.preset('detail').chart_octaves_min_steps:,} steps are fast), fast (fewer islands in the "
+                   f"textured reconstruction), paper or tiny; default {C.DEFAULT_PRESET}")
     p.add_argument("--config", default=None, metavar="YAML", help="start from a saved config.yaml instead of a preset")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--device", default=None, choices=["auto", "cpu", "cuda"])
