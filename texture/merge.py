@@ -14,7 +14,10 @@ like any region (:func:`texture.unwrap_islands.flatten_region`), and it replaces
   cuts, and slits add seams: the border it removes must pay for them).
 
 Two islands whose mean energy excess (area-weighted) is above ``cfg.slit_target`` are not
-tried (:func:`_pairs`: the union's map restricted to each is a map of it). Neighbours are
+tried (:func:`_pairs`: the union's map restricted to each is a map of it); nor is a union
+holding one refused before for its distortion where the rest of it cannot dilute that
+trial's strain to the bound (:func:`_holds_failed`, the same rule with the refused trial's
+map for the part it covered). Neighbours are
 tried in order of the border they share (longest first), in rounds: each
 round a matching (no island in two pairs) is flattened at once (in parallel processes), the
 accepted pairs are merged, and a pair that failed is not tried again unless one side changed.
@@ -119,10 +122,47 @@ def _shared_borders(islands: list[Island], adj, n_faces: int) -> dict[tuple[int,
     return {(int(k // n), int(k % n)): float(w) for k, w in zip(keys, length)}
 
 
-def _strain(isl: Island) -> tuple[float, float]:
-    """(3D area, area times energy excess) of an island."""
-    area = float(triangle_areas(isl.xyz, isl.faces).sum())
-    return area, area * float(energy_excess(isl.xyz, isl.uv, isl.faces))
+def _strain(isl: Island, keep: np.ndarray | None = None) -> tuple[float, float]:
+    """(3D area, area times energy excess) of an island, or of its faces ``keep`` (a mask)."""
+    faces = isl.faces if keep is None else isl.faces[keep]
+    if len(faces) == 0:
+        return 0.0, 0.0
+    area = float(triangle_areas(isl.xyz, faces).sum())
+    return area, area * float(energy_excess(isl.xyz, isl.uv, faces))
+
+
+@dataclass(frozen=True)
+class FailedUnion:
+    """A trial refused for its distortion: its working faces (a mask) and the strain of its
+    flattened islands together (:func:`_strain`: area, area times excess)."""
+
+    faces: np.ndarray
+    area: float
+    strain: float
+
+
+def _holds_failed(isls: list[Island], failed: list[FailedUnion], n_faces: int, bound: float) -> bool:
+    """Whether the union of ``isls`` holds a union refused before (:class:`FailedUnion`) whose
+    strain, with the strain of the rest of the union in its islands' present maps, is above
+    ``bound`` times the union's area: the rule :func:`_pairs` applies to two islands, with the
+    refused trial's flattening standing for the part it covered. The union's map restricted
+    to that part is a map of it, with one slit budget for all, so the union seldom does better
+    there than the trial did; the rest can only dilute the excess by its area (the bunny's
+    last trial: the whole part, holding two refused unions at 0.110 and 0.104, ended at 0.127
+    after 8 slits, 10 of its unwrap's 28 s of merging)."""
+    if not failed:
+        return False
+    inside = np.zeros(n_faces, bool)
+    for isl in isls:
+        inside[isl.work_faces] = True
+    for f in failed:
+        if not inside[f.faces].all():
+            continue
+        rest = [_strain(isl, ~f.faces[isl.work_faces]) for isl in isls]
+        area = f.area + sum(a for a, _ in rest)
+        if f.strain + sum(s for _, s in rest) > bound * area:
+            return True
+    return False
 
 
 def total_curvature(xyz: np.ndarray, faces: np.ndarray) -> float:
@@ -175,7 +215,8 @@ def _whole_groups(islands: list[Island], shared: dict, cfg, strain: list, xyz: n
 
 
 def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list, skipped: dict,
-           xyz: np.ndarray, work_faces: np.ndarray, busy: set[int]) -> list[tuple[int, int]]:
+           xyz: np.ndarray, work_faces: np.ndarray, busy: set[int],
+           refused: tuple[list[FailedUnion], dict] = ([], {})) -> list[tuple[int, int]]:
     """This round's pairs: neighbours by shared border, longest first, each island in one pair
     at most, none that failed before, none above ``cfg.merge_max_faces`` faces that
     :func:`_cheap_union` refuses (those go into ``failed``: refused until one side changes), and
@@ -190,7 +231,10 @@ def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list,
     pass. It skips the trials on a surface no few islands can flatten (crumpled below its
     face size) and next to an island whose own slits stopped short of the bound; the trials
     it saved, and that it lost no merge, are measured in docs/unwrap.md. ``busy``: islands
-    already in this round's trials (updated).
+    already in this round's trials (updated). ``refused``: (the trials refused for their
+    distortion so far, a dict that receives the pairs skipped for holding one:
+    :func:`_holds_failed`, the same rule with a refused trial's map for the part it covered);
+    such a pair goes into ``failed`` too.
     """
     out = []
     for p, q in sorted(shared, key=lambda pq: (-shared[pq], pq)):
@@ -199,6 +243,10 @@ def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list,
             skipped[(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])
         if (p in busy or q in busy or (id(islands[p]), id(islands[q])) in failed
                 or islands[p].kept_start or islands[q].kept_start or strained):
+            continue
+        if _holds_failed([islands[p], islands[q]], refused[0], len(work_faces), cfg.slit_target):
+            refused[1][(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])
+            failed[(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])  # until one side changes
             continue
         if (len(islands[p].faces) + len(islands[q].faces) > cfg.merge_max_faces
                 and not _cheap_union([islands[p], islands[q]], xyz, work_faces, cfg.slit_target)):
@@ -227,7 +275,7 @@ def _union(islands: list[Island], group: tuple[int, ...], xyz, work_faces, inter
 def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg) -> tuple[list[Island], dict]:
     """(islands, stats): see the module docstring. ``adj``: the working mesh's face adjacency
     (:func:`texture.regions.face_adjacency`); ``cfg``: a :class:`texture.unwrap.UnwrapConfig`."""
-    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": [], "skipped_strained": 0}
+    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": [], "skipped_strained": 0, "skipped_holding_refused": 0}
     if cfg.merge_max_faces <= 0 or len(islands) < 2:
         return islands, st
     # a union above the face cap gets the two-resolution flattening only: where that fails,
@@ -248,12 +296,15 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     # that an island merged away and freed cannot hand its id to a new one (which would then
     # pass for the failed pair's member and never be tried)
     failed: dict[tuple[int, int], tuple[Island, Island]] = {}
+    refused: list[FailedUnion] = []  # trials refused for their distortion (:func:`_holds_failed`)
+    held: dict[tuple[int, int], tuple[Island, Island]] = {}  # pairs skipped for holding one
     first = True
     while True:  # each round merges a pair or fails one more: it ends when no pair is left
         shared = _shared_borders(islands, adj, len(work_faces))
         todo: list[tuple[int, ...]] = _whole_groups(islands, shared, cfg, strain, xyz, work_faces) if first else []
         first = False
-        todo += _pairs(islands, shared, failed, cfg, strain, skipped, xyz, work_faces, {k for g in todo for k in g})
+        todo += _pairs(islands, shared, failed, cfg, strain, skipped, xyz, work_faces, {k for g in todo for k in g},
+                       (refused, held))
         if not todo:
             break
         seam_of = [sum(seam[k] for k in g) for g in todo]
@@ -281,9 +332,17 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
                 st["seam_removed"] += before - new_seam
             elif len(g) == 2:
                 failed[(id(islands[g[0]]), id(islands[g[1]]))] = (islands[g[0]], islands[g[1]])
+            if new and not any(i.kept_start for i in new) and np.isfinite(excess).all() and max(excess) > cfg.slit_target:
+                # refused for its distortion, its map relaxed (not a start kept): a union holding it
+                # is judged by it (:func:`_holds_failed`)
+                mask = np.zeros(len(work_faces), bool)
+                mask[np.concatenate([islands[k].work_faces for k in g])] = True
+                parts = [_strain(i) for i in new]
+                refused.append(FailedUnion(mask, sum(a for a, _ in parts), sum(s for _, s in parts)))
         keep = [k for k in range(len(islands)) if k not in drop]
         islands = [islands[k] for k in keep] + add
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
         strain = [strain[k] for k in keep] + [_strain(i) for i in add]
     st["skipped_strained"] = len(skipped)
+    st["skipped_holding_refused"] = len(held)
     return islands, st

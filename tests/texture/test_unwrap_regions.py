@@ -199,11 +199,45 @@ def test_merge_tries_the_pairs_a_failed_round_left_out():
     merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
     tried = [(t["faces"], t["merged"]) for t in st["trials"]]
     n_h, n_t = len(parts[0]), len(parts[1])
-    # then the cap and the tube, which fails like the cap and a half
+    # then the cap and the tube, which fails like the cap and a half. It holds that refused
+    # union (excess 0.23, 2.03 of area), but the other half it adds (0.47 of area, isometric)
+    # would dilute that to 0.187, within the bound, so it is tried, not skipped
     assert tried == [(n_h + n_t, False), (n_h + n_t, False), (2 * n_t, True), (n_h + 2 * n_t, False)]
+    assert st["skipped_holding_refused"] == 0
     assert len(merged) == 2 and sorted(len(i.faces) for i in merged) == [2 * n_t, n_h]
     tube = next(i for i in merged if len(i.faces) == 2 * n_t)
     assert energy_excess(tube.xyz, tube.uv, tube.faces) < 1e-3
+
+
+def test_merge_skips_a_union_holding_a_refused_one_that_its_rest_cannot_dilute():
+    """A sphere (1,280 faces) as two sides A, B (excess 0.089 and 0.081) and a polar cap C
+    (0.004), bound 0.2, no slits. A + B, the sphere less its cap, is refused at excess 1.14;
+    B + C, a hemisphere, merges at 0.16. A + (B + C) is the whole sphere: it holds A + B, and
+    the cap's 132 faces would dilute that trial's strain to about 1.0, far above the bound, so
+    it is not tried (counted in ``skipped_holding_refused``). Tried, the sphere cut open is
+    refused indeed (its map far above the bound). Old code: a third trial."""
+    cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=0, slit_target=0.2)
+    s = shapes.sphere(subdivisions=3)
+    v, f = np.asarray(s.vertices), np.asarray(s.faces)
+    c = v[f].mean(1)
+    c /= np.linalg.norm(c, axis=1)[:, None]
+    cap = c[:, 2] > 0.8
+    parts = (np.flatnonzero(~cap & (c[:, 1] >= 0)), np.flatnonzero(~cap & (c[:, 1] < 0)), np.flatnonzero(cap))
+    islands = []
+    for lab, sel in enumerate(parts):
+        islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
+    relax_islands(islands, cfg)
+    assert len(islands) == 3 and all(energy_excess(i.xyz, i.uv, i.faces) < cfg.slit_target for i in islands)
+    merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    n_a, n_b, n_c = map(len, parts)
+    assert [(t["faces"], t["merged"]) for t in st["trials"]] == [(n_a + n_b, False), (n_a + n_c, True)]
+    assert st["trials"][0]["excess"] > 5 * cfg.slit_target
+    assert st["skipped_holding_refused"] == 1 and len(merged) == 2
+    assert sorted(len(i.faces) for i in merged) == sorted([n_b, n_a + n_c])
+    # the skipped trial: the whole sphere cut to a disk and relaxed as a trial would be
+    (whole,) = flatten_region(v, f, np.arange(len(f)), 0, 0, {"region_splits": 0, "cut_edges": 0})
+    relax_islands([whole], cfg)
+    assert energy_excess(whole.xyz, whole.uv, whole.faces) > cfg.slit_target
 
 
 def _cap(degrees: float, subdivisions: int = 4):
