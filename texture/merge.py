@@ -216,7 +216,7 @@ def _whole_groups(islands: list[Island], shared: dict, cfg, strain: list, xyz: n
 
 def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list, skipped: dict,
            xyz: np.ndarray, work_faces: np.ndarray, busy: set[int],
-           refused: tuple[list[FailedUnion], dict] = ([], {})) -> list[tuple[int, int]]:
+           refused: tuple[list[FailedUnion], dict] | None = None) -> list[tuple[int, int]]:
     """This round's pairs: neighbours by shared border, longest first, each island in one pair
     at most, none that failed before, none above ``cfg.merge_max_faces`` faces that
     :func:`_cheap_union` refuses (those go into ``failed``: refused until one side changes), and
@@ -244,7 +244,7 @@ def _pairs(islands: list[Island], shared: dict, failed: dict, cfg, strain: list,
         if (p in busy or q in busy or (id(islands[p]), id(islands[q])) in failed
                 or islands[p].kept_start or islands[q].kept_start or strained):
             continue
-        if _holds_failed([islands[p], islands[q]], refused[0], len(work_faces), cfg.slit_target):
+        if refused is not None and _holds_failed([islands[p], islands[q]], refused[0], len(work_faces), cfg.slit_target):
             refused[1][(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])
             failed[(id(islands[p]), id(islands[q]))] = (islands[p], islands[q])  # until one side changes
             continue
