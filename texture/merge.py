@@ -141,6 +141,14 @@ class FailedUnion:
     strain: float
 
 
+def _faces_mask(isls: list[Island], n_faces: int) -> np.ndarray:
+    """The working faces of ``isls`` as a mask over the ``n_faces`` working faces."""
+    mask = np.zeros(n_faces, bool)
+    for isl in isls:
+        mask[isl.work_faces] = True
+    return mask
+
+
 def _holds_failed(isls: list[Island], failed: list[FailedUnion], n_faces: int, bound: float) -> bool:
     """Whether the union of ``isls`` holds a union refused before (:class:`FailedUnion`) whose
     strain, with the strain of the rest of the union in its islands' present maps, is above
@@ -152,9 +160,7 @@ def _holds_failed(isls: list[Island], failed: list[FailedUnion], n_faces: int, b
     after 8 slits, 10 of its unwrap's 28 s of merging)."""
     if not failed:
         return False
-    inside = np.zeros(n_faces, bool)
-    for isl in isls:
-        inside[isl.work_faces] = True
+    inside = _faces_mask(isls, n_faces)
     for f in failed:
         if not inside[f.faces].all():
             continue
@@ -322,7 +328,8 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         for g, new, before, n in zip(todo, trials, seam_of, faces_of):
             excess = [float(energy_excess(i.xyz, i.uv, i.faces)) for i in new]
             new_seam = sum(island_seam(i, interior) for i in new) if new else float("inf")
-            ok = bool(new) and not any(i.kept_start for i in new) and max(excess) <= cfg.slit_target
+            relaxed = bool(new) and not any(i.kept_start for i in new)  # a map made, not a start kept
+            ok = relaxed and max(excess) <= cfg.slit_target
             st["trials"].append({"faces": n, "islands": len(g), "excess": max(excess, default=None), "seam_before": before,
                                  "seam_after": new_seam if new else None, "merged": ok and new_seam < before})
             if st["trials"][-1]["merged"]:
@@ -332,13 +339,11 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
                 st["seam_removed"] += before - new_seam
             elif len(g) == 2:
                 failed[(id(islands[g[0]]), id(islands[g[1]]))] = (islands[g[0]], islands[g[1]])
-            if new and not any(i.kept_start for i in new) and np.isfinite(excess).all() and max(excess) > cfg.slit_target:
-                # refused for its distortion, its map relaxed (not a start kept): a union holding it
-                # is judged by it (:func:`_holds_failed`)
-                mask = np.zeros(len(work_faces), bool)
-                mask[np.concatenate([islands[k].work_faces for k in g])] = True
+            if relaxed and np.isfinite(excess).all() and max(excess) > cfg.slit_target:
+                # refused for its distortion: a union holding it is judged by it (:func:`_holds_failed`)
                 parts = [_strain(i) for i in new]
-                refused.append(FailedUnion(mask, sum(a for a, _ in parts), sum(s for _, s in parts)))
+                refused.append(FailedUnion(_faces_mask([islands[k] for k in g], len(work_faces)),
+                                           sum(a for a, _ in parts), sum(s for _, s in parts)))
         keep = [k for k in range(len(islands)) if k not in drop]
         islands = [islands[k] for k in keep] + add
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
