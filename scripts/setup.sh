@@ -5,6 +5,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 SYS_PKGS=(libllvm19 libegl1 libgl1-mesa-dri libegl-mesa0 libgl1 libglu1-mesa)
+# Wait for a dpkg/apt lock another process holds (two setups at once, unattended upgrades)
+# instead of failing on it.
+APT=(apt-get -o DPkg::Lock::Timeout=600)
 missing=()
 for p in "${SYS_PKGS[@]}"; do
     dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
@@ -13,8 +16,8 @@ if [ ${#missing[@]} -gt 0 ]; then
     if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
         echo "[setup] installing system packages: ${missing[*]}"
         export DEBIAN_FRONTEND=noninteractive
-        apt-get update -qq >/dev/null
-        apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+        "${APT[@]}" update -qq >/dev/null
+        "${APT[@]}" install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
     else
         echo "[setup] warning: missing system packages (${missing[*]}) and cannot apt-get; renderers may fall back" >&2
     fi
@@ -23,8 +26,8 @@ fi
 # Headless Chromium checks the HTML report as a browser lays it out (tests skip without it).
 if ! command -v chromium >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
     echo "[setup] installing chromium (report layout tests)"
-    (export DEBIAN_FRONTEND=noninteractive; apt-get update -qq >/dev/null && \
-        apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
+    (export DEBIAN_FRONTEND=noninteractive; "${APT[@]}" update -qq >/dev/null && \
+        "${APT[@]}" install -y -qq --no-install-recommends chromium >/dev/null) \
         || echo "[setup] warning: could not install chromium; report layout tests will skip" >&2
 fi
 
