@@ -34,7 +34,6 @@ import argparse
 import json
 import platform
 import re
-import resource
 import subprocess
 import sys
 import time
@@ -44,6 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from mnacore.atomic import write_text  # noqa: E402
+from mnacore.memory import peak_rss_mb, reset_peak_rss  # noqa: E402
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
@@ -123,7 +123,7 @@ def run_one(mesh: Path, work: Path, steps: int, size: int, reuse: bool) -> dict:
             "ours": {**doc["uv_metrics"], "islands": doc["uv_metrics"]["charts"], "timings": doc["timings"],
                      "fallback_area_fraction": doc["assignment"]["fallback_area_fraction"],
                      "far_area_fraction": doc["assignment"]["far_area_fraction"]},
-            "xatlas": xa, "xatlas_fewest": sweep, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+            "xatlas": xa, "xatlas_fewest": sweep, "peak_rss_mb": peak_rss_mb()}
 
 
 def split9(vertices, faces):
@@ -192,7 +192,7 @@ def _child(kind: str, mesh: str, run: str, out: str, size: int) -> None:
         r = unwrap(inp.vertices, inp.faces, XatlasOptions(resolution=size, padding=8), check=False)
         ref = trimesh.Trimesh(inp.vertices, inp.faces, process=False)
         row = {**measure(r.mesh, reference=ref, normalization=norm).summary, "seconds": r.seconds}
-    row["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    row["peak_rss_mb"] = peak_rss_mb()
     # the workers are forks of texture.parallel's fork server, not children of this process
     row["peak_rss_workers_mb"] = parallel.peak_worker_rss_mb()
     print(json.dumps(row, default=float), flush=True)
@@ -286,7 +286,7 @@ def section(results: list[dict], args) -> str:
             f"{o['fallback_area_fraction']:.3f} | {', '.join(missed) or 'none'} |")
     stages = ("prepare", "assign", "clean", "whole", "flatten", "relax", "slits", "merge", "split", "pack")
     lines += ["", "Ours, seconds per stage (after the fit):", "",
-              "| mesh | fit s | " + " | ".join(stages) + " | texture | write | peak RSS MB |",
+              "| mesh | fit s | " + " | ".join(stages) + " | texture | write | peak RSS MB (this mesh: unwrap + xatlas) |",
               "|---|---|" + "---|" * (len(stages) + 3)]
     for r in results:
         t = r["ours"]["timings"]
@@ -330,6 +330,7 @@ def main() -> int:
     results = []
     for mesh in ([] if args.scale_only else _inputs(work, args.only, args.held_out)):
         print(f"== {mesh.stem}", flush=True)
+        reset_peak_rss()  # each mesh's peak on its own (else the column only grows)
         results.append(run_one(mesh, work, args.steps, args.size, args.reuse))
         (work / "results.json").write_text(json.dumps(results, indent=1, default=float))
     text = section(results, args) if results else f"## {SECTION}\n"

@@ -39,9 +39,10 @@ the unwrap or export directly must guard its entry with ``if __name__ == "__main
 from __future__ import annotations
 
 import os
-import resource
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
+
+from mnacore.memory import peak_rss_mb
 
 _shared: Any = None
 
@@ -63,7 +64,7 @@ WORKING_SHARE = 0.01
 PRELOAD = ["numpy", "scipy.sparse", "scipy.spatial", "igl", "xatlas",
            "texture.relax", "texture.scale_search", "texture.orient", "texture.unwrap_islands"]
 
-_peak_worker_kb = 0
+_peak_worker_mb = 0.0
 _limits: Any = None  # the worker's BLAS thread limit (held so that it stays in force)
 
 
@@ -75,7 +76,7 @@ def default_workers() -> int:
 def peak_worker_rss_mb() -> float:
     """The largest peak resident memory of any worker so far, in MB (the workers are not
     this process's children, so ``RUSAGE_CHILDREN`` does not see them)."""
-    return _peak_worker_kb / 1024
+    return _peak_worker_mb
 
 
 def _set_shared(shared) -> None:
@@ -89,7 +90,7 @@ def _set_shared(shared) -> None:
 
 def _call(arg):
     fn, job = arg
-    return fn(job, _shared), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return fn(job, _shared), peak_rss_mb()
 
 
 def _context():
@@ -110,7 +111,7 @@ def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None 
     long no job may finish before the pool is taken for hung; callers whose jobs are short
     pass less, so a hang costs them that, not three minutes (the result is the same).
     """
-    global _peak_worker_kb
+    global _peak_worker_mb
     workers = min(len(jobs), workers or default_workers())
     if parallel and workers > 1:
         try:
@@ -123,8 +124,8 @@ def parallel_map(fn: Callable[[Any, Any], Any], jobs: list, workers: int | None 
                 # a killed pool marks its unfinished futures broken (from the executor's own
                 # thread, so sooner or later than this loop reads them): those jobs run here too
                 if f.done() and not f.cancelled() and not isinstance(f.exception(), BrokenProcessPool):
-                    r, kb = f.result()  # a job's own error is raised here, as in a serial run
-                    _peak_worker_kb = max(_peak_worker_kb, kb)
+                    r, mb = f.result()  # a job's own error is raised here, as in a serial run
+                    _peak_worker_mb = max(_peak_worker_mb, mb)
                     out.append(r)
                 else:  # its worker hung: run it here
                     out.append(fn(job, shared))
