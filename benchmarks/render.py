@@ -15,10 +15,7 @@ benchmarks/RESULTS.md is replaced (re-read just before writing; other sections u
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import re
-import subprocess
 import sys
 import tempfile
 import time
@@ -28,6 +25,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from machine import describe  # noqa: E402  (benchmarks/machine.py)
 
 from render.backend import available_variants, import_mitsuba, use_variant  # noqa: E402
 from render.images import write_png  # noqa: E402
@@ -49,25 +48,6 @@ def torus(n: int = 48, m: int = 24) -> UVMesh:
     a = (i[:-1, :-1] * (m + 1) + j[:-1, :-1]).ravel()
     f = np.concatenate([np.stack([a, a + 1, a + m + 2], 1), np.stack([a, a + m + 2, a + m + 1], 1)])
     return UVMesh(v, f, np.stack([i / n, j / m], -1).reshape(-1, 2), name="torus")
-
-
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    gpu = ""
-    try:
-        gpu = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
-                             text=True, timeout=10).stdout.strip().splitlines()[0]
-    except (OSError, subprocess.SubprocessError, IndexError):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores{', GPU ' + gpu if gpu else ', no GPU'}; load average {load:.1f} at start"
 
 
 def bench_mitsuba(variant: str, scene: dict, base: Path, spps: list[int], repeats: int, budget: float) -> dict:
@@ -170,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     mesh = torus()
     framing = framing_for(mesh, preset)
     (cam,) = camera_rig(framing.sphere, preset, args.res, args.res, ["three_quarter"])
-    mach = machine()
+    mach = describe()
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(tmp)
         write_ply(base / "mesh.ply", mesh.vertices, mesh.faces, mesh.uv, vertex_normals(mesh.vertices, mesh.faces))

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import socket
 import statistics
 import subprocess
@@ -30,6 +29,7 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 import trimesh  # noqa: E402
+from machine import cpu_name  # noqa: E402  (benchmarks/machine.py)
 
 from mna import shapes, train_config  # noqa: E402
 from mnacore.atomic import write_text  # noqa: E402
@@ -92,15 +92,6 @@ def run_one(root: Path, out: Path, steps: int, batch: int, threads: int, world: 
     print(f"  {world} process(es) x {threads} thread(s): {time.perf_counter() - t0:.0f} s wall", flush=True)
     return throughput(out)
 
-
-def cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def write_section(text: str) -> None:

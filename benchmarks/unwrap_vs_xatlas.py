@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import re
 import subprocess
 import sys
@@ -41,6 +40,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from machine import describe  # noqa: E402  (benchmarks/machine.py)
 
 from mnacore.atomic import write_text  # noqa: E402
 from mnacore.memory import peak_rss_mb, reset_peak_rss  # noqa: E402
@@ -262,8 +263,8 @@ def targets(r: dict) -> dict:
 
 def section(results: list[dict], args) -> str:
     lines = [f"## {SECTION}", "",
-             f"`benchmarks/unwrap_vs_xatlas.py --steps {args.steps}` on {platform.machine()} "
-             f"({platform.processor() or 'cpu'}), {time.strftime('%Y-%m-%d')}. Per mesh: fit (fast preset, 3 charts, "
+             f"`benchmarks/unwrap_vs_xatlas.py --steps {args.steps}` on {describe()}, "
+             f"{time.strftime('%Y-%m-%d')}. Per mesh: fit (fast preset, 3 charts, "
              f"{args.steps} steps), `mna unwrap` of the input mesh with those charts, xatlas (defaults, and the "
              "sweep point with the fewest charts) on the same mesh; one harness (unit-ball frame of the fit, "
              f"reference = the input), texture {args.size}, padding 8. Time: the UV step only (ours: after the fit; "
