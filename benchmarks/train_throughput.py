@@ -93,7 +93,6 @@ def run_one(root: Path, out: Path, steps: int, batch: int, threads: int, world: 
     return throughput(out)
 
 
-
 def write_section(text: str) -> None:
     path = REPO / "benchmarks" / "RESULTS.md"
     old = path.read_text() if path.is_file() else "# Benchmark results\n"
