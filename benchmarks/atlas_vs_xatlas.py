@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import re
 import subprocess
 import sys
@@ -31,6 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from mna.config import DEFAULT_PRESET  # noqa: E402
 from mnacore.atomic import write_text  # noqa: E402
+from mnacore.machine import cpu_summary  # noqa: E402
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
@@ -124,7 +124,7 @@ def section(results: list[dict], args) -> str:
              "`mna` = our packed atlas; `xatlas` = xatlas (defaults, unit-ball frame) on the *same* reconstructed "
              "mesh; `xatlas_input` = xatlas on the input mesh. UV time: ours = trim + orient + relax + pack, xatlas = its "
              "`generate`; total: ours = export (atlas + texture + write), plus fit and extract for the run.", "",
-             f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+             f"Machine: {cpu_summary()}, "
              f"load average {os.getloadavg()[0]:.1f} at the end.", "", head, "|" + "---|" * 15]
     for res in results:
         cmp, exp = res["compare"], res["export"]

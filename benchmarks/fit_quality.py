@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import re
 import sys
 import time
@@ -34,6 +33,7 @@ from mna.data import load_surface  # noqa: E402
 from mna.fit import Fitter  # noqa: E402
 from mna.metrics import chamfer_fscore  # noqa: E402
 from mna.run import fit_run  # noqa: E402
+from mnacore.machine import cpu_summary  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "RESULTS.md"
 MESHES = ROOT.parent / "shared" / "data" / "meshes"
@@ -165,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         f"`{args.preset}` (width {cfg.model.chart_width}, "
         f"{cfg.uv_samples} UV samples/chart, {cfg.targets} fresh targets/step, L_dist on {cfg.dist_samples} "
         f"positives/chart, lr {cfg.lr} with cosine decay from {cfg.lr_decay_start:.0%} of the budget), seed 0, "
-        f"{args.budget:.0f} s of fitting per mesh. Machine: {platform.machine()}, {os.cpu_count()} cores, "
+        f"{args.budget:.0f} s of fitting per mesh. Machine: {cpu_summary()}, "
         f"torch {torch.__version__} ({where}); load average at start {load:.1f}. "
         "Metrics in the unit-ball frame, 25,000 points each side; oracle F = two independent "
         "25,000-point samples of the input surface.\n\n"
@@ -209,7 +209,7 @@ def hard_main(args) -> int:
         "`benchmarks/fit_quality.py --hard --steps N --curve-every M [--preset P] [--charts K|auto] "
         f"[--hard-targets H] [--threads T]`: the row's preset (`{args.preset}` in this run; width "
         f"{cfg.model.chart_width}, {cfg.uv_samples} UV samples/chart, "
-        f"{cfg.targets} uniform targets/step), seed 0, on {args.device} ({platform.machine()}, {os.cpu_count()} cores, "
+        f"{cfg.targets} uniform targets/step), seed 0, on {args.device} ({cpu_summary()}, "
         f"torch {torch.__version__}). One row per shape and variant (K charts; `3 -> K (auto)`: started with 3 "
         "and grown where coverage stalled, `mna.grow`; hard targets: extra targets per step where the charts err most, "
         "`mna.hard_targets`). Scores every M steps on a copy of the model with its own c (the same metrics as a "

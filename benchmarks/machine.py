@@ -1,38 +1,14 @@
-"""The machine a benchmark ran on, as its block in RESULTS.md names it.
-
-The CPU's model and its widest vector extension are named, not only the architecture: a
-fit repeats exactly on one machine but not across CPUs (their kernels sum in other orders;
-the unwrap benchmark's 19 fits made again on a machine with AVX-512 moved the bunny's F
-88.9 -> 88.5), so a block's numbers compare with another's only on the same CPU.
-"""
+"""The machine a benchmark ran on, as its block in RESULTS.md names it: the CPU as
+:mod:`mnacore.machine` names it (model and vector extension: fits repeat on one CPU, not
+across CPUs), the GPU, the load."""
 from __future__ import annotations
 
 import os
-import platform
 import subprocess
-from pathlib import Path
 
-#: vector extensions, widest first: the first in the CPU's flags is named
-_VECTOR = (("avx512f", "AVX-512"), ("avx2", "AVX2"), ("avx", "AVX"), ("asimd", "NEON"))
+from mnacore.machine import cpu_name, cpu_summary
 
-
-def cpu_name() -> str:
-    """The CPU's model (``/proc/cpuinfo``) and its widest vector extension, e.g. ``Intel(R)
-    Xeon(R) Processor, AVX-512``; the architecture where ``/proc`` is missing."""
-    model, flags = "", set()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            key, _, value = line.partition(":")
-            key = key.strip()
-            if key == "model name" and not model:
-                model = value.strip()
-            elif key in ("flags", "Features") and not flags:
-                flags = set(value.split())
-    except OSError:
-        pass
-    model = model or platform.processor() or platform.machine()
-    vector = next((name for flag, name in _VECTOR if flag in flags), "")
-    return f"{model}, {vector}" if vector else model
+__all__ = ["cpu_name", "cpu_summary", "gpu_name", "describe"]
 
 
 def gpu_name() -> str:
@@ -50,4 +26,4 @@ def describe() -> str:
     """``<cpu>, <n> cores, GPU <name> | no GPU; load average <x> at start``."""
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     gpu = gpu_name()
-    return f"{cpu_name()}, {os.cpu_count()} cores{', GPU ' + gpu if gpu else ', no GPU'}; load average {load:.1f} at start"
+    return f"{cpu_summary()}{', GPU ' + gpu if gpu else ', no GPU'}; load average {load:.1f} at start"

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -30,6 +29,7 @@ sys.path.insert(0, str(ROOT))
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from mna import paper  # noqa: E402
+from mnacore.machine import cpu_summary  # noqa: E402
 
 MESHES = ROOT.parent / "shared" / "data" / "meshes"
 
@@ -234,8 +234,7 @@ def section(rows: list[dict], s: Sizes, args, load: float) -> str:
     from paper_report import render_section
 
     return render_section(rows, asdict(s) | {"size": args.size, "jobs": args.jobs, "threads": args.threads,
-                                            "device": args.device, "machine": f"{platform.machine()}, "
-                                            f"{os.cpu_count()} cores", "load": load}, HARD)
+                                            "device": args.device, "machine": cpu_summary(), "load": load}, HARD)
 
 
 def write_figure(rows: list[dict], stem: Path, s: Sizes) -> None:

@@ -7,8 +7,6 @@ written under a temporary name and renamed, so an interrupted run leaves no half
 from __future__ import annotations
 
 import json
-import os
-import platform
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +29,7 @@ from mnacore.atomic import atomic_path, write_json
 from mnacore.charts import save_charts
 from mnacore.errors import MnaError
 from mnacore.frame import Normalization, far_from_origin
+from mnacore.machine import cpu_summary
 from mnacore.topology import mesh_topology
 
 CONFIG = "config.yaml"
@@ -236,7 +235,7 @@ def extract_run(run: str | Path, points: int | None = None, grid: int | None = N
         "acceptance_rate": sample.acceptance, "mesh_faces": int(len(chart_grid.faces)),
         "normalization": norm.to_dict(), "input": surface.path,
         "device": str(next(model.parameters()).device), "torch": torch.__version__,
-        "machine": f"{platform.machine()} {os.cpu_count()} cpu",
+        "machine": cpu_summary(),
     }
     metrics["timings"] = {**old.get("timings", {}), **timings}
     write_json(run / METRICS, metrics)

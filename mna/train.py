@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import platform
 import signal
 import sys
 import time
@@ -47,6 +46,7 @@ from mna.objective import LossTerms, atlas_losses
 from mna.train_config import TrainConfig
 from mnacore.atomic import clean_stale_temporaries, write_json, write_text
 from mnacore.errors import MnaError
+from mnacore.machine import cpu_summary
 
 CONFIG = "config.yaml"
 CHECKPOINT = "checkpoint.pt"
@@ -340,7 +340,7 @@ def _finish(trainer: Trainer, out: Path, val_set) -> dict:
         "shapes_per_second": trainer.step * cfg.batch_size / max(trainer.elapsed, 1e-9),
         "world_size": ctx.world, "device": str(ctx.device), "amp": trainer.amp,
         "encoder_weights": trainer.model.encoder.weights, "rank_max_param_diff": divergence,
-        "torch": torch.__version__, "machine": f"{platform.machine()} {os.cpu_count()} cpu",
+        "torch": torch.__version__, "machine": cpu_summary(),
     }
     rows = [r for r in trainer.log_rows if r.get("val_chamfer_pcl") is not None]
     if rows:

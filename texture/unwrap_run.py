@@ -21,6 +21,7 @@ import numpy as np
 from mnacore.atomic import write_json
 from mnacore.charts import load_charts
 from mnacore.errors import InputError
+from mnacore.machine import cpu_summary
 from mnacore.uvmesh import read_mesh, validate_mesh
 
 from .export import export_textured
@@ -191,7 +192,8 @@ def unwrap_to_folder(inp: UnwrapInput, run: str | os.PathLike, out: str | os.Pat
         doc = {"input": str(Path(inp.path).resolve()), "run": str(Path(run).resolve()),
                "input_uv_replaced": inp.had_uv, "texture": texture, "size": size, "padding": pad,
                "normalization": norm.to_json(), "charts": charts.n_charts,
-               **result.stats, "uv_metrics": metrics.summary, "timings": timings, "files": paths,
+               **result.stats, "uv_metrics": metrics.summary, "timings": timings, "machine": cpu_summary(),
+               "files": paths,
                **(extra or {})}
     finally:
         bar(None)  # closes the bar, also when a stage fails (the error line then stands alone)

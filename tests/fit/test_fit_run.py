@@ -16,6 +16,7 @@ import trimesh
 
 from mna import config as C
 from mna.run import fit_run, load_model
+from mnacore.machine import cpu_summary
 
 
 def _tiny(steps: int = 40) -> C.FitConfig:
@@ -44,6 +45,7 @@ def test_run_folder_contract(torus_file, tmp_path):
     assert len(m["occupancy_rate"]) == 3 and all(0 <= r <= 100 for r in m["occupancy_rate"])
     assert m["input_topology"] == {"parts": 1, "genus": 1, "genus_per_part": [1], "boundaries": 0, "manifold": True}
     assert m["charts"] == 3 and m["charts_rule"] == "fixed"
+    assert m["machine"] == cpu_summary()  # the CPU model: fits repeat on one CPU, not across CPUs
     # outputs are in the input's frame: the point cloud overlaps the input's bounding box
     src = trimesh.load(torus_file, process=False)
     pts = trimesh.load(run / "points.ply").vertices

@@ -11,6 +11,7 @@ from texture_helpers import assert_glb_validates, glb_attribute, glb_json, write
 
 from mna import shapes
 from mna.cli import main
+from mnacore.machine import cpu_summary
 from texture.export import read_back
 from texture.harness import measure
 from texture.textures import read_image, same_triangles, sample_bilinear
@@ -33,6 +34,7 @@ def test_unwrap_writes_the_input_faces_with_uvs(unwrapped):
         assert (out / name).is_file()
     info = json.loads((out / "unwrap.json").read_text())
     assert info["fit"] == "reused" and info["input_uv_replaced"] is False
+    assert info["machine"] == cpu_summary()  # which machine the timings are of
     for stage in ("prepare", "assign", "clean", "flatten", "relax", "slits", "pack"):
         assert info["timings"][f"unwrap_{stage}"] >= 0
     for fmt in ("mesh.obj", "mesh.glb"):
