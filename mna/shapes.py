@@ -161,10 +161,109 @@ def assembly(parts: int = 12, seed: int = 0) -> trimesh.Trimesh:
     return trimesh.util.concatenate(meshes)
 
 
+def _periodic_grid(surface, n_u: int, n_v: int, closed_u: bool = True) -> trimesh.Trimesh:
+    """Quads of ``surface(u, v) -> (..., 3)`` over ``[0, 1) x [0, 1)``, split in two triangles
+    each; periodic in v, and in u where ``closed_u`` (a torus; else an open tube)."""
+    u, v = np.meshgrid(np.arange(n_u) / (n_u if closed_u else n_u - 1), np.arange(n_v) / n_v, indexing="ij")
+    i, j = np.meshgrid(np.arange(n_u if closed_u else n_u - 1), np.arange(n_v), indexing="ij")
+    a, b = i * n_v + j, (i + 1) % n_u * n_v + j
+    c, d = (i + 1) % n_u * n_v + (j + 1) % n_v, i * n_v + (j + 1) % n_v
+    faces = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return trimesh.Trimesh(surface(u, v).reshape(-1, 3), faces, process=False)
+
+
+def _tube(centre, tangent, radius: float, up=(0.0, 0.0, 1.0)):
+    """``surface(u, v)`` of a tube of ``radius`` around the curve ``centre(t)`` (t in [0, 1]),
+    framed by its ``tangent(t)`` and the fixed axis ``up``, which the tangent must never
+    run along."""
+    def surface(u, v):
+        c, t = centre(u), tangent(u)
+        t = t / np.linalg.norm(t, axis=-1, keepdims=True)
+        n = np.cross(t, up)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        s = 2 * np.pi * v[..., None]
+        return c + radius * (np.cos(s) * n + np.sin(s) * np.cross(t, n))
+    return surface
+
+
+def trefoil(sections: int = 300, ring: int = 24) -> trimesh.Trimesh:
+    """A tube (radius 0.45) around a trefoil knot: genus 1, long and knotted."""
+    w = 2 * np.pi
+
+    def centre(u):
+        return np.stack([np.sin(w * u) + 2 * np.sin(2 * w * u), np.cos(w * u) - 2 * np.cos(2 * w * u),
+                         -np.sin(3 * w * u)], -1)
+
+    def tangent(u):  # its xy part never vanishes (squared length 17 + 8 cos 3wu): z serves as up
+        return np.stack([np.cos(w * u) + 4 * np.cos(2 * w * u), -np.sin(w * u) + 4 * np.sin(2 * w * u),
+                         -3 * np.cos(3 * w * u)], -1)
+
+    mesh = _periodic_grid(_tube(centre, tangent, 0.45), sections, ring)
+    mesh.fix_normals()
+    return mesh
+
+
+def chair() -> trimesh.Trimesh:
+    """Six boxes (seat, back, four legs) that pass into one another, each subdivided 3 times:
+    sharp edges, flat faces, six parts, as a game asset is built. No corner of one box lies
+    on another's surface (that would weld the parts into a non-manifold one)."""
+    boxes = [([2, 2, 0.2], [0, 0, 1]), ([1.8, 0.2, 2], [0, 0.8, 2.05])]
+    boxes += [([0.2, 0.2, 1], [x, y, 0.45]) for x in (-0.83, 0.83) for y in (-0.83, 0.83)]
+    mesh = trimesh.util.concatenate([trimesh.creation.box(e, trimesh.transformations.translation_matrix(t))
+                                     for e, t in boxes])
+    for _ in range(3):
+        mesh = mesh.subdivide()
+    return mesh
+
+
+def mug() -> trimesh.Trimesh:
+    """A thick-walled cup (a revolved profile: genus 0, sharp rims) and a handle (an open
+    tube whose ends pass through the wall, as in many game assets): two parts, mostly
+    developable."""
+    profile = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.9, 2.0], [0.9, 0.1], [0.0, 0.1]])
+    cup = trimesh.creation.revolve(profile, sections=96).subdivide_to_size(0.2)
+
+    def centre(u):  # an arc of radius 0.6 in the xz plane, its ends inside the wall (x < 0.95)
+        a = 1.1 * np.pi * (u - 0.5)
+        return np.stack([1.0 + 0.6 * np.cos(a), np.zeros_like(u), 1.0 + 0.6 * np.sin(a)], -1)
+
+    def tangent(u):  # in the xz plane: y serves as up
+        a = 1.1 * np.pi * (u - 0.5)
+        return np.stack([-np.sin(a), np.zeros_like(u), np.cos(a)], -1)
+
+    handle = _periodic_grid(_tube(centre, tangent, 0.1, up=(0.0, 1.0, 0.0)), 60, 16, closed_u=False)
+    return trimesh.util.concatenate([cup, handle])
+
+
+def saddle_annulus(rings: int = 40, sections: int = 160) -> trimesh.Trimesh:
+    """An annulus (radii 0.5 to 1.5) on the saddle z = 0.3 (x^2 - y^2): open, two border
+    loops, negative curvature."""
+    def surface(u, v):
+        r, a = 0.5 + u, 2 * np.pi * v
+        x, y = r * np.cos(a), r * np.sin(a)
+        return np.stack([x, y, 0.3 * (x * x - y * y)], -1)
+    return _periodic_grid(surface, rings, sections, closed_u=False)
+
+
+def starfish(subdivisions: int = 5) -> trimesh.Trimesh:
+    """A flattened sphere with five long arms (radius up to 2.6 in the plane): limbs that
+    taper to their tips. Genus 0."""
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    v = np.array(mesh.vertices)
+    arm = np.maximum(0.0, np.cos(5 * np.arctan2(v[:, 1], v[:, 0]))) ** 6 * (1 - np.abs(v[:, 2])) ** 2
+    v[:, :2] *= 1 + 1.6 * arm[:, None]
+    v[:, 2] *= 0.5
+    return trimesh.Trimesh(v, mesh.faces, process=False)
+
+
 SHAPES = {"sphere": sphere, "torus": torus, "genus2": genus2, "two_spheres": two_spheres, "sheet": sheet}
 #: shapes that are hard for a 3-chart fit (issue 18): handles (genus 3, 4, 6), fine relief, thin limbs, many parts
 HARD_SHAPES = {"genus4": genus4, "pretzel3": functools.partial(pretzel, 3), "plate6": functools.partial(plate, (2, 3)),
                "bumpy": bumpy, "limbs": limbs, "assembly": assembly}
+#: shapes no rule of the unwrap was tuned on (benchmarks/unwrap_vs_xatlas.py --unseen): a knotted
+#: tube, boxes with sharp edges, a cup and handle, a saddle annulus, tapering arms
+UNSEEN_SHAPES = {"trefoil": trefoil, "chair": chair, "mug": mug, "saddle_annulus": saddle_annulus,
+                 "starfish": starfish}
 
 
 def shape_file(name: str, folder: str | Path) -> Path:
@@ -178,8 +277,8 @@ def shape_file(name: str, folder: str | Path) -> Path:
 
 
 def make(name: str) -> trimesh.Trimesh:
-    """Build a shape by name (one of ``SHAPES`` or ``HARD_SHAPES``)."""
-    makers = {**SHAPES, **HARD_SHAPES}
+    """Build a shape by name (one of ``SHAPES``, ``HARD_SHAPES`` or ``UNSEEN_SHAPES``)."""
+    makers = {**SHAPES, **HARD_SHAPES, **UNSEEN_SHAPES}
     if name not in makers:
         raise ValueError(f"unknown built-in shape {name!r}; choose from {', '.join(makers)}")
     return makers[name]()
