@@ -94,6 +94,7 @@ def _xatlas_row(method, mesh_name, vertices, faces, opts, folder, harness_kw, si
     res = unwrap(vertices, faces, opts, check=check)
     norm = harness_kw["normalization"]
     row_extra = {"xatlas_charts": res.charts, "xatlas_utilization": res.utilization,
+                 "xatlas_atlas_size": list(res.atlas_size), "xatlas_packings_after": res.calls - 1,
                  "max_cost": opts.max_cost, "max_iterations": opts.max_iterations}
     if folder is not None:
         image = make_texture("checker", res.mesh.transformed(norm), size, opts.padding)
@@ -101,7 +102,8 @@ def _xatlas_row(method, mesh_name, vertices, faces, opts, folder, harness_kw, si
     m = measure(res.mesh, **harness_kw)
     if folder is not None:
         write_json(Path(folder) / "metrics.json", {"method": method, "options": res.options, "uv_metrics": m.summary,
-                                                   "timings": {"xatlas": res.seconds}, **row_extra})
+                                                   "timings": {"xatlas": res.seconds, "xatlas_total": res.seconds_total},
+                                                   **row_extra})
     return _row(method, mesh_name, m.summary, res.seconds, row_extra)
 
 
