@@ -16,9 +16,11 @@ with gutters other than those asked for, where ours keeps them. So where the atl
 out another size, xatlas's own charts are packed again by xatlas's packer
 (:func:`texture.placement.xatlas_pack`, the stage ``generate`` ends with) at exactly the
 resolution, at the largest scale at which one atlas holds them all (bracketed by
-:data:`HOLD_STEP`, bisected to :data:`HOLD_TOL`). Charts, seams and distortion do not change.
-``seconds`` stays ``generate``'s time (xatlas's own speed, as it is compared with ours);
-``seconds_total`` and ``calls`` count the packings after it.
+:data:`HOLD_STEP`, bisected to :data:`HOLD_TOL`). Charts and seams do not change;
+distortion moves only by xatlas's snapping of each chart to whole texels at the new scale
+(the milk truck 0.0073 -> 0.0130). ``seconds`` stays ``generate``'s time (xatlas's own
+speed, as it is compared with ours); ``seconds_total`` and ``calls`` count the packings
+after it.
 """
 from __future__ import annotations
 
@@ -89,9 +91,10 @@ class XatlasResult:
         charts: xatlas's chart count.
         atlas_size: (width, height) in texels.
         utilization: xatlas's own utilisation (of width x height).
-        seconds: time of the first ``generate`` (segmentation + parametrisation + packing).
-        seconds_total: time of every ``generate`` made (see the module docstring).
-        calls: ``generate`` calls made (1 where the first atlas kept the resolution).
+        seconds: time of ``generate`` (segmentation + parametrisation + packing).
+        seconds_total: that and the packings that held the atlas to the resolution (module
+            docstring).
+        calls: xatlas calls made: ``generate`` and those packings.
     """
 
     mesh: UVMesh
