@@ -162,8 +162,8 @@ def assembly(parts: int = 12, seed: int = 0) -> trimesh.Trimesh:
 
 
 def _periodic_grid(surface, n_u: int, n_v: int, closed_u: bool = True) -> trimesh.Trimesh:
-    """Quads of ``surface(u, v) -> (..., 3)`` over ``[0, 1) x [0, 1)``, split in two triangles
-    each; periodic in v, and in u where ``closed_u`` (a torus; else an open tube)."""
+    """Quads of ``surface(u, v) -> (..., 3)``, split in two triangles each: v over [0, 1)
+    (periodic), u over [0, 1) where ``closed_u`` (a torus) or over [0, 1] (an open tube)."""
     u, v = np.meshgrid(np.arange(n_u) / (n_u if closed_u else n_u - 1), np.arange(n_v) / n_v, indexing="ij")
     i, j = np.meshgrid(np.arange(n_u if closed_u else n_u - 1), np.arange(n_v), indexing="ij")
     a, b = i * n_v + j, (i + 1) % n_u * n_v + j
