@@ -6,9 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 
-from mnacore.machine import cpu_name, cpu_summary
-
-__all__ = ["cpu_name", "cpu_summary", "gpu_name", "describe"]
+from mnacore.machine import cpu_summary
 
 
 def gpu_name() -> str:

@@ -29,10 +29,10 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 import trimesh  # noqa: E402
-from machine import cpu_name  # noqa: E402  (benchmarks/machine.py)
 
 from mna import shapes, train_config  # noqa: E402
 from mnacore.atomic import write_text  # noqa: E402
+from mnacore.machine import cpu_name  # noqa: E402
 
 SECTION = "## train_throughput"
 

@@ -93,17 +93,16 @@ def _row(method: str, mesh_name: str, summary: dict, seconds: float, extra: dict
 def _xatlas_row(method, mesh_name, vertices, faces, opts, folder, harness_kw, size, check):
     res = unwrap(vertices, faces, opts, check=check)
     norm = harness_kw["normalization"]
-    row_extra = {"xatlas_charts": res.charts, "xatlas_utilization": res.utilization,
-                 "xatlas_atlas_size": list(res.atlas_size), "xatlas_packings_after": res.calls - 1,
-                 "max_cost": opts.max_cost, "max_iterations": opts.max_iterations}
+    record = res.record()
+    timings = record.pop("timings")
+    row_extra = {**record, "max_cost": opts.max_cost, "max_iterations": opts.max_iterations}
     if folder is not None:
         image = make_texture("checker", res.mesh.transformed(norm), size, opts.padding)
         export_textured(folder, res.mesh, image)
     m = measure(res.mesh, **harness_kw)
     if folder is not None:
         write_json(Path(folder) / "metrics.json", {"method": method, "options": res.options, "uv_metrics": m.summary,
-                                                   "timings": {"xatlas": res.seconds, "xatlas_total": res.seconds_total},
-                                                   **row_extra})
+                                                   "timings": timings, **row_extra})
     return _row(method, mesh_name, m.summary, res.seconds, row_extra)
 
 

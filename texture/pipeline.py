@@ -247,10 +247,7 @@ def uv_mesh_file(mesh_path: str | os.PathLike, out: str | os.PathLike, options: 
     image = make_texture(texture, result_norm, size, opts.padding, source, square_size)
     paths = export_textured(out, result.mesh, image)
     metrics = measure(result.mesh, reference=mesh, normalization=norm)
-    out_json = {"method": "xatlas", "input": str(mesh_path), "options": result.options,
-                "xatlas_charts": result.charts, "xatlas_atlas_size": list(result.atlas_size),
-                "xatlas_utilization": result.utilization, "uv_metrics": metrics.summary,
-                "xatlas_packings_after": result.calls - 1,
-                "timings": {"xatlas": result.seconds, "xatlas_total": result.seconds_total}, "files": paths}
+    out_json = {"method": "xatlas", "input": str(mesh_path), "options": result.options, **result.record(),
+                "uv_metrics": metrics.summary, "files": paths}
     write_json(Path(out) / "metrics.json", out_json)
     return out_json

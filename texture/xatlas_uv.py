@@ -107,6 +107,13 @@ class XatlasResult:
     seconds_total: float = 0.0
     calls: int = 1
 
+    def record(self) -> dict:
+        """The fields every xatlas record carries (``mna uv``'s and ``mna compare``'s
+        ``metrics.json``): charts, atlas size, utilisation, packings after ``generate``, times."""
+        return {"xatlas_charts": self.charts, "xatlas_atlas_size": list(self.atlas_size),
+                "xatlas_utilization": self.utilization, "xatlas_packings_after": self.calls - 1,
+                "timings": {"xatlas": self.seconds, "xatlas_total": self.seconds_total}}
+
 
 def check_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> None:
     """Reject degenerate faces (zero area or a repeated vertex) and non-manifold edges.
@@ -175,20 +182,21 @@ def unwrap(vertices: np.ndarray, faces: np.ndarray, options: XatlasOptions | Non
     total, calls, utilization = seconds, 1, float(atlas.utilization)
     if opts.resolution > 0 and opts.texels_per_unit == 0 and max(w, h) != opts.resolution:
         t0 = time.perf_counter()
-        held = _held(uv, idx, opts)
-        total, calls = total + time.perf_counter() - t0, calls + held[2]
-        if held[0] is not None:
-            uv, idx, vmap, utilization = held[0], held[1], vmap[held[3]], held[4]
+        held, packings = _held(uv, idx, opts)
+        total, calls = total + time.perf_counter() - t0, calls + packings
+        if held is not None:
+            held_vmap, held_idx, held_uv = held[0]
             w = h = int(opts.resolution)
+            uv, idx, vmap = held_uv.astype(np.float64) * w, held_idx.astype(np.int64), vmap[held_vmap]
+            utilization = float(held.utilization)
     mesh = make_uv_mesh(vertices[vmap], idx, uv / max(w, h), name="xatlas output")
     return XatlasResult(mesh, vmap, int(atlas.chart_count), (w, h), utilization, seconds, asdict(opts), total, calls)
 
 
 def _held(px: np.ndarray, faces: np.ndarray, opts: XatlasOptions):
-    """xatlas's charts ``(px (V, 2) texels, faces)`` packed by xatlas at exactly
-    ``opts.resolution`` at the largest scale where one atlas holds them (module docstring):
-    (texel UVs or None where no scale within ``HOLD_TRIES`` packings fits, faces, packings
-    made, source vertex of each output vertex, xatlas's utilisation of that atlas)."""
+    """(xatlas's atlas of its charts ``(px (V, 2) texels, faces)`` packed at exactly
+    ``opts.resolution`` at the largest scale where one atlas holds them, or None where none
+    within ``HOLD_TRIES`` packings does; the packings made): see the module docstring."""
     from .harness import uv_islands
     from .placement import xatlas_pack
 
@@ -219,10 +227,7 @@ def _held(px: np.ndarray, faces: np.ndarray, opts: XatlasOptions):
             fit, lo = a, mid
         else:
             hi = mid
-    if fit is None:
-        return None, faces, calls, np.arange(len(px)), 0.0
-    vmap, idx, uv = fit[0]
-    return uv.astype(np.float64) * res, idx.astype(np.int64), calls, vmap.astype(np.int64), float(fit.utilization)
+    return fit, calls
 
 
 def _generate(positions: np.ndarray, faces: np.ndarray, chart_options, pack_options):
