@@ -413,3 +413,28 @@ def test_turned_islands_reuse_each_islands_rectangle_and_nothing_else(monkeypatc
     del a, first, again, plain
     LP.turned([c], mode, cache)  # a new array: its rectangle is found, whatever its id
     assert len(calls) == 5
+
+
+def test_a_round_makes_the_shortest_cut_that_reaches_the_target_else_the_best_gain_per_length():
+    """:func:`texture.unwrap_layout._chosen` on the halvings that paid in two measured rounds
+    (utilisation as packed, length of the cut). The cup with a handle (target 0.6): cuts of
+    3.29, 1.42 and 1.40 packing 0.623, 0.605 and 0.596: the 1.42 cut, the shortest that
+    reaches the target, not the 3.29 that packs most. The sphere's first round (from 0.357):
+    2.70 packing 0.506 and 1.82 packing 0.504, neither at the target: the 1.82 cut, which buys
+    0.081 per unit of length where the other buys 0.055. With no shorter cut the most
+    utilisation per length is still the most utilisation."""
+    from types import SimpleNamespace
+
+    from texture.unwrap_layout import _chosen
+
+    cfg = UnwrapConfig()
+    assert cfg.pack_target == 0.6
+
+    def opts(*pairs):
+        return [(SimpleNamespace(utilization=u), cut, k) for k, (u, cut) in enumerate(pairs)]
+
+    assert _chosen(opts((0.623, 3.29), (0.605, 1.42), (0.596, 1.40)), cfg, 0.487)[2] == 1
+    assert _chosen(opts((0.506, 2.70), (0.504, 1.82)), cfg, 0.357)[2] == 1
+    assert _chosen(opts((0.506, 2.70), (0.504, 2.70)), cfg, 0.357)[2] == 0
+    # equal cuts reaching the target (one halving in two packing modes): the better packed
+    assert _chosen(opts((0.61, 1.0), (0.65, 1.0), (0.70, 1.5)), cfg, 0.5)[2] == 1
