@@ -27,8 +27,8 @@ domain project onto its border and fold). Stages (timed in ``stats["timings"]``)
 6. ``split``: islands above ``target_distortion`` halved and re-flattened; islands too long
    to pack densely halved across their length, UVs kept (:mod:`texture.unwrap_islands`);
    then faces hanging on their island by one edge move across the seam (:mod:`texture.ears`).
-7. ``pack``: the islands turned (and, below ``pack_target``, halved) as packs best
-   (:func:`texture.unwrap_layout.choose_layout`), then :func:`texture.pack.pack_islands` at
+7. ``pack``: the islands turned as packs best and, below ``pack_target``, halved by the
+   cuts that buy it for the least seam (:func:`texture.unwrap_layout.choose_layout`), then :func:`texture.pack.pack_islands` at
    ``resolution`` and ``padding`` (the search compares real packings).
 
 Output (:class:`Unwrap`): a :class:`UVMesh` whose face ``i`` is input face ``i`` with
@@ -267,8 +267,8 @@ def _packed(islands: list, comp: np.ndarray, cfg: UnwrapConfig):
     """(packing, islands as packed, vertex offset of each island, islands reflected, layout
     search stats): every island counter-clockwise like the input's winding (no island mirrored
     as seen from outside; one whose faces all turned clockwise is reflected in u), then turned
-    and halved as packs best (:func:`texture.unwrap_layout.choose_layout`: rotations and cuts
-    along edges only, never a mirror), then packed."""
+    and halved (:func:`texture.unwrap_layout.choose_layout`: rotations and cuts along edges
+    only, never a mirror), then packed."""
     mirrored = 0
     for isl in islands:
         if signed_areas(isl.uv, isl.faces).sum() < 0:
