@@ -24,7 +24,8 @@ they were added (later sessions measured their misses on them).
 
 ``--unseen``: also ``mna.shapes.UNSEEN_SHAPES`` (a knotted tube, a chair of six boxes, a cup
 and handle, a saddle annulus, a five-armed starfish), added after the held-out shapes had
-become benchmark meshes: a check of the unwrap's rules on shapes they were not set on.
+become benchmark meshes: a check of the unwrap's rules on shapes they were not set on (the
+forty-first session's choice of packing cut was then probed on the mug's rounds, among others).
 
 ``--scale``: the bunny subdivided twice (1-to-4, 111k faces) and that split 1-to-9 (1.0M
 faces), the same surface, so the bunny's fit serves both; ours and xatlas (defaults) each

@@ -70,9 +70,36 @@ def first_guess(isl: IslandSet, resolution, padding, options) -> float:
     return tpu * (resolution - 1) / max(free.width, free.height, 1)
 
 
+def largest_fit(fits, scale: float, shrink: float, tol: float, max_calls: int) -> tuple[tuple | None, int]:
+    """((the largest scale found at which ``fits(scale)`` gave a result, that result) or None,
+    the calls made). From ``scale``: lowered by ``shrink`` while nothing fits, raised by it
+    while everything does (a start can be too cautious), then bisected (geometrically) between
+    the largest fitting and the smallest failing scale until they are within ``tol``; at most
+    ``max_calls`` calls. xatlas's validity is not monotone in the scale, so this is the largest
+    found, not the largest there is."""
+    calls = 0
+    good = bad = None  # (scale, result) of the largest fitting / scale of the smallest failing
+    while calls < max_calls:
+        if good is not None and bad is not None and bad / good[0] - 1 < tol:
+            break
+        calls += 1
+        got = fits(scale)
+        if got is not None:
+            good = (scale, got)
+        else:
+            bad = scale
+        if good is None:
+            scale *= shrink
+        elif bad is None:
+            scale /= shrink
+        else:
+            scale = np.sqrt(good[0] * bad)
+    return good, calls
+
+
 def search(isl: IslandSet, resolution, padding, options, max_attempts, tpu: float | None = None,
            shrink: float = SHRINK, tol: float = BISECT_TOL) -> Found | None:
-    """The largest valid xatlas placement found, or None.
+    """The largest valid xatlas placement found (:func:`largest_fit`), or None.
 
     Without a starting ``tpu`` the first guess comes from a pack into an unbounded atlas.
     """
@@ -80,23 +107,9 @@ def search(isl: IslandSet, resolution, padding, options, max_attempts, tpu: floa
     if tpu is None:
         tpu = first_guess(isl, resolution, padding, options)
         attempts = 1
-    good = bad = None  # (tpu, texel positions) of the largest valid / tpu of the smallest invalid
-    while attempts < max_attempts:
-        if good is not None and bad is not None and bad / good[0] - 1 < tol:
-            break
-        attempts += 1
-        px = attempt(isl, resolution, padding, tpu, options)
-        if px is not None:
-            good = (tpu, px)
-        else:
-            bad = tpu
-        if good is None:
-            tpu *= shrink
-        elif bad is None:
-            tpu /= shrink  # the square can pack tighter than the first guess suggested
-        else:
-            tpu = np.sqrt(good[0] * bad)
-    return None if good is None else Found(good[0], good[1], attempts)
+    good, calls = largest_fit(lambda t: attempt(isl, resolution, padding, t, options), tpu, shrink, tol,
+                              max_attempts - attempts)
+    return None if good is None else Found(good[0], good[1], attempts + calls)
 
 
 @dataclass(frozen=True)

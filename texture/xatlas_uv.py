@@ -199,6 +199,7 @@ def _held(px: np.ndarray, faces: np.ndarray, opts: XatlasOptions):
     within ``HOLD_TRIES`` packings does; the packings made): see the module docstring."""
     from .harness import uv_islands
     from .placement import xatlas_pack
+    from .scale_search import largest_fit
 
     island = uv_islands(faces, px)
     res, pad = int(opts.resolution), int(opts.padding)
@@ -210,24 +211,8 @@ def _held(px: np.ndarray, faces: np.ndarray, opts: XatlasOptions):
         return a if a.atlas_count == 1 else None
 
     side = float(np.ptp(px, axis=0).max()) or 1.0
-    scale, calls = res / side, 0
-    fit, lo, hi = None, None, None  # the largest fitting packing, its scale, the smallest failing scale
-    while calls < HOLD_TRIES and (lo is None or hi is None):
-        a = pack(scale)
-        calls += 1
-        if a is not None:
-            fit, lo, scale = a, scale, scale * HOLD_STEP
-        else:
-            hi, scale = scale, scale / HOLD_STEP
-    while calls < HOLD_TRIES and lo is not None and hi is not None and hi / lo > 1 + HOLD_TOL:
-        mid = np.sqrt(lo * hi)
-        a = pack(mid)
-        calls += 1
-        if a is not None:
-            fit, lo = a, mid
-        else:
-            hi = mid
-    return fit, calls
+    fit, calls = largest_fit(pack, res / side, 1 / HOLD_STEP, HOLD_TOL, HOLD_TRIES)
+    return (None if fit is None else fit[1]), calls
 
 
 def _generate(positions: np.ndarray, faces: np.ndarray, chart_options, pack_options):
