@@ -6,6 +6,7 @@
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --scale --reuse       # + the bunny at 111k and 1.0M faces
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --held-out --only genus4 plate6 ...  # + the hard shapes
     .venv/bin/python benchmarks/unwrap_vs_xatlas.py --unseen --only trefoil chair mug saddle_annulus starfish
+    .venv/bin/python benchmarks/unwrap_vs_xatlas.py --meshes ~/scans --work benchmarks/runs/mine  # your own meshes
 
 Per mesh (``../shared/data/meshes`` when present, plus procedural shapes from
 ``mna.shapes``: sphere, torus (genus 1), genus-2, two spheres, a wavy open sheet): a fit
@@ -33,6 +34,10 @@ in a process of its own (time and peak RSS per run; xatlas stopped after
 ``--xatlas-timeout`` seconds), one harness. Targets: ours after the fit <= xatlas's time at
 >= 50k faces, and <= 3 min and <= 8 GB at 1M faces.
 
+``--meshes``: instead of the above, these mesh files, or every mesh file in these folders
+(read where they are, never copied): meshes nobody tuned the unwrap on. Give them a
+``--work`` of their own (each run writes ``results.json`` there).
+
 Each run's block goes on top of the section; earlier blocks are kept below it.
 """
 from __future__ import annotations
@@ -59,11 +64,35 @@ SECTION = "unwrap_vs_xatlas"
 PROCEDURAL = ("sphere", "torus", "genus2", "two_spheres", "wavy_sheet")
 
 
-def _inputs(work: Path, only: list[str] | None, held_out: bool = False, unseen: bool = False) -> list[Path]:
+MESH_SUFFIXES = (".obj", ".off", ".ply")
+
+
+def mesh_files(given: list[str]) -> list[Path]:
+    """The mesh files named in ``given``: files as they are, folders as the mesh files in them
+    (sorted); a stem met twice would share a run folder, so it is refused."""
+    paths: list[Path] = []
+    for g in map(Path, given):
+        if g.is_dir():
+            paths += sorted(p for p in g.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
+        elif g.is_file():
+            paths.append(g)
+        else:
+            raise SystemExit(f"unwrap_vs_xatlas: no such mesh file or folder: {g}")
+    stems = [p.stem for p in paths]
+    twice = sorted({s for s in stems if stems.count(s) > 1})
+    if twice:
+        raise SystemExit(f"unwrap_vs_xatlas: two meshes named {', '.join(twice)} (runs are kept by name)")
+    return paths
+
+
+def _inputs(work: Path, only: list[str] | None, held_out: bool = False, unseen: bool = False,
+            meshes: list[str] | None = None) -> list[Path]:
     from mna import shapes
 
-    paths = sorted(p for p in MESHES.glob("*") if p.suffix in (".obj", ".off", ".ply")) if MESHES.is_dir() else []
     work.mkdir(parents=True, exist_ok=True)
+    if meshes:
+        return [p for p in mesh_files(meshes) if not only or p.stem in only]
+    paths = sorted(p for p in MESHES.glob("*") if p.suffix in MESH_SUFFIXES) if MESHES.is_dir() else []
     for name in PROCEDURAL:
         path = work / f"{name}.ply"
         if not path.is_file():
@@ -293,6 +322,8 @@ def _selection(args) -> str:
     """The flags that chose this block's meshes and fits, as its heading names the run."""
     flags = [f"--steps {args.steps}"] + [flag for flag, on in (("--held-out", args.held_out), ("--unseen", args.unseen),
                                                                 ("--reuse", args.reuse)) if on]
+    if args.meshes:  # by name: where they lie is the user's
+        flags.append("--meshes (" + ", ".join(p.stem for p in mesh_files(args.meshes)) + ")")
     return " ".join(flags + (["--only " + " ".join(args.only)] if args.only else []))
 
 
@@ -362,6 +393,8 @@ def main() -> int:
     ap.add_argument("--held-out", action="store_true", help="also the hard shapes of mna.shapes (genus 3-6, bumps, limbs, 12 parts)")
     ap.add_argument("--unseen", action="store_true",
                     help="also the unseen shapes of mna.shapes (knotted tube, chair, mug, saddle annulus, starfish)")
+    ap.add_argument("--meshes", nargs="+", default=None,
+                    help="only these mesh files (or the mesh files in these folders), read in place")
     ap.add_argument("--scale", action="store_true", help="also the bunny at 111k and 1.0M faces")
     ap.add_argument("--scale-only", action="store_true", help="only the bunny at 111k and 1.0M faces")
     ap.add_argument("--xatlas-timeout", type=float, default=900.0, help="seconds before a scale run of xatlas stops")
@@ -372,7 +405,8 @@ def main() -> int:
         return 0
     work = Path(args.work)
     results = []
-    for mesh in ([] if args.scale_only else _inputs(work, args.only, args.held_out, args.unseen)):
+    for mesh in ([] if args.scale_only else _inputs(work, args.only, args.held_out, args.unseen,
+                                                                      args.meshes)):
         print(f"== {mesh.stem}", flush=True)
         per_mesh = reset_peak_rss()  # each mesh's peak on its own (else the column only grows)
         results.append({**run_one(mesh, work, args.steps, args.size, args.reuse), "peak_rss_per_mesh": per_mesh})

@@ -675,6 +675,32 @@ def test_benchmark_island_target_holds_up_to_genus_four():
     assert targets(row(8, faces=81920, ours_s=15.9, xatlas_s=33.2))["time"] is True
 
 
+def test_benchmark_takes_the_users_own_meshes(tmp_path):
+    """``--meshes``: files as given, folders as the mesh files in them (any case of suffix,
+    other files left out, sorted); a missing path or a name met twice (runs are kept by name)
+    stops the benchmark with one line, not a traceback."""
+    import sys
+    from pathlib import Path
+
+    bench = str(Path(__file__).resolve().parents[2] / "benchmarks")
+    if bench not in sys.path:
+        sys.path.append(bench)  # appended: benchmarks/render.py must not shadow the render package
+    from unwrap_vs_xatlas import mesh_files
+
+    scans, more = tmp_path / "scans", tmp_path / "more"
+    scans.mkdir()
+    more.mkdir()
+    for name in ("b.obj", "a.PLY", "c.off", "notes.txt", "d.png"):
+        (scans / name).write_text("")
+    (more / "e.obj").write_text("")
+    assert [p.name for p in mesh_files([str(scans), str(more / "e.obj")])] == ["a.PLY", "b.obj", "c.off", "e.obj"]
+    (more / "b.off").write_text("")
+    with pytest.raises(SystemExit, match="two meshes named b"):
+        mesh_files([str(scans), str(more)])
+    with pytest.raises(SystemExit, match="no such mesh file or folder"):
+        mesh_files([str(tmp_path / "missing.obj")])
+
+
 def test_islands_above_the_multires_size_flatten_in_two_resolutions():
     """The whole unwrap with islands above ``multires_faces`` (lowered here so a 20k-face
     sphere exercises it in seconds; the code path is the one a 1M-face mesh takes): every
