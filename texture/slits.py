@@ -40,6 +40,8 @@ class SlitResult:
     slits: int
     excess_before: float
     excess_after: float
+    stopped_by_length: bool = False
+    """the next slit would have reached ``max_length`` (:func:`slit_island`), above the target"""
 
 
 def face_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -184,6 +186,7 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
             break
         length += float(np.linalg.norm(np.diff(p[path], axis=0), axis=1).sum())
         if length >= max_length:
+            best = replace(best, stopped_by_length=True)
             break
         _, new_faces, src = igl.cut_mesh(p, cur_faces, _cut_flags(cur_faces, [path]))
         new_faces = np.asarray(new_faces, np.int64)

@@ -143,11 +143,13 @@ def _holed(p: np.ndarray, f: np.ndarray, rule: HoledRule | None) -> np.ndarray |
 
 
 def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, label: int,
-                    depth: int, stats: dict, holed: HoledRule | None = None) -> list[Island]:
+                    depth: int, stats: dict, holed: HoledRule | None = None,
+                    max_added: float = np.inf) -> list[Island]:
     """Disk-cut and embed one connected region (``faces`` index ``xyz``; conformal where
     that is an embedding, else Tutte: :func:`texture.flatten.start_map`); see module docstring.
     ``holed``: a piece that is a disk with holes is kept uncut (a ``holed`` island) where
-    the :class:`HoledRule` allows."""
+    the :class:`HoledRule` allows. ``max_added``: the seam a flattening with holes filled
+    may add (:func:`texture.holes.flatten_filled`)."""
     vid, inv = np.unique(faces, return_inverse=True)
     local = inv.reshape(-1, 3)
     split, src = split_pinched(local)
@@ -163,13 +165,16 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
             stats["holed"] = stats.get("holed", 0) + 1
             out.append(Island(f, uncut, p, work_faces[sel], vid[src[cv]], label, holed=True))
             continue
-        filled = None if holed is None or len(f) > holed.max_faces else flatten_filled(
-            p, f, holed.relax, holed.within, holed.max_slits)
         try:
             disk = cut_to_disk(p, f)
         except (RuntimeError, ValueError, KeyError, IndexError):
             disk = None
-        if filled is not None and (disk is None or filled.added <= cut_seam(p, f, disk)):
+        # the filled flattening is kept only where it adds no more seam than the cuts to a disk
+        # it saves: its slits stop there (and it is dropped) instead of being relaxed for nothing
+        saves = np.inf if disk is None else cut_seam(p, f, disk)
+        filled = None if holed is None or len(f) > holed.max_faces else flatten_filled(
+            p, f, holed.relax, holed.within, holed.max_slits, min(max_added, saves))
+        if filled is not None and filled.added <= saves:
             # relaxed and slit already: the disk steps leave it as it is
             stats["filled"] = stats.get("filled", 0) + 1
             stats["cut_edges"] += filled.cut_edges

@@ -98,3 +98,72 @@ def test_a_curved_region_with_small_holes_takes_less_seam_filled_than_cut_to_a_d
     stats = {"region_splits": 0, "cut_edges": 0}
     out = flatten_region(xyz, faces, np.arange(len(faces)), 0, 0, stats, holed_rule(cfg))
     assert len(out) == 1 and out[0].holed and stats["filled"] == 1 and len(out[0].faces) == len(faces)
+
+
+def test_a_filled_flattening_stops_where_its_seam_would_pass_what_it_may_add():
+    """``max_added`` (the seam a caller can use the filled flattening under: the cuts to a disk
+    it saves, or what a merge trial's union saves): the sphere cap above needs slits; allowed
+    at least the seam they take, the flattening is the unbounded one, array for array; allowed
+    less, no slit is relaxed past that and it is dropped (None), and ``flatten_region`` cuts
+    the region to a disk instead of keeping a filled island with more seam than that."""
+    import texture.slits as slits_module
+    from texture.holes import flatten_filled
+    from texture.relax import RelaxConfig
+    from texture.unwrap import UnwrapConfig
+    from texture.unwrap_islands import flatten_region, holed_rule
+
+    s = trimesh.creation.icosphere(subdivisions=4)
+    c = s.vertices[s.faces].mean(1)
+    keep = c[:, 2] > -0.2
+    rng = np.random.default_rng(3)
+    inner = np.flatnonzero(keep & (c[:, 2] > 0.2))
+    keep[rng.choice(inner, 6, replace=False)] = False
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    cfg, relax = UnwrapConfig(), RelaxConfig(iterations=200, min_gain=1e-4)
+    free = flatten_filled(xyz, faces, relax, cfg.slit_target, cfg.max_slits)
+    assert free is not None and free.added > 0.1  # slits were cut (no handles: all of it is slits)
+    same = flatten_filled(xyz, faces, relax, cfg.slit_target, cfg.max_slits, free.added * (1 + 1e-9))
+    np.testing.assert_array_equal(same.uv, free.uv)
+    np.testing.assert_array_equal(same.faces, free.faces)
+
+    relaxed = []
+    original = slits_module._relaxed_cut
+
+    def counted(*a, **k):
+        relaxed.append(1)
+        return original(*a, **k)
+
+    slits_module._relaxed_cut = counted
+    try:
+        assert flatten_filled(xyz, faces, relax, cfg.slit_target, cfg.max_slits, 0.999 * free.added) is None
+        short = len(relaxed)
+        relaxed.clear()
+        flatten_filled(xyz, faces, relax, cfg.slit_target, cfg.max_slits)
+        assert short < len(relaxed)  # the last slit (at least) was never relaxed
+    finally:
+        slits_module._relaxed_cut = original
+    stats = {"region_splits": 0, "cut_edges": 0}
+    out = flatten_region(xyz, faces, np.arange(len(faces)), 0, 0, stats, holed_rule(cfg), 0.999 * free.added)
+    assert "filled" not in stats and not any(i.holed for i in out)
+    assert sum(len(i.faces) for i in out) == len(faces)
+
+
+def test_a_unions_border_seam_is_half_its_border_inside_the_mesh():
+    """``merge._border_seam`` (the seam a union has before any cut, as ``island_seam`` counts
+    it: half of each border edge that is a seam, the mesh's own border none): a 4 x 3 block of
+    a 10 x 10 grid of 0.5-unit cells, inside it (perimeter 14 cells) and at its corner (two
+    sides on the mesh's border)."""
+    from texture.merge import _border_seam, interior_edges
+
+    sheet = shapes.sheet(size=5.0, resolution=11)  # 10 x 10 cells of 0.5
+    xyz, faces = np.asarray(sheet.vertices, float), np.asarray(sheet.faces)
+    cell = np.floor((xyz[faces].mean(1)[:, :2] + 2.5) / 0.5).astype(int)
+    interior = interior_edges(faces)
+
+    def block(x0, y0):
+        sel = (cell[:, 0] >= x0) & (cell[:, 0] < x0 + 4) & (cell[:, 1] >= y0) & (cell[:, 1] < y0 + 3)
+        return faces[sel]
+
+    assert _border_seam(block(3, 3), xyz, interior) == pytest.approx(0.5 * 14 * 0.5)
+    assert _border_seam(block(0, 0), xyz, interior) == pytest.approx(0.5 * 7 * 0.5)  # two sides are the mesh's border
