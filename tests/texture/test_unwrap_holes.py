@@ -25,6 +25,18 @@ def _grid_with_holes(n: int = 20, holes=((5, 5), (12, 7), (15, 15)), big: tuple 
     return xyz, faces[~drop]
 
 
+def _holed_cap():
+    """A sphere cap (z > -0.2) with six one-face holes near its top (curved: it needs slits)."""
+    s = trimesh.creation.icosphere(subdivisions=4)
+    c = s.vertices[s.faces].mean(1)
+    keep = c[:, 2] > -0.2
+    rng = np.random.default_rng(3)
+    inner = np.flatnonzero(keep & (c[:, 2] > 0.2))
+    keep[rng.choice(inner, 6, replace=False)] = False
+    vid, inv = np.unique(s.faces[keep], return_inverse=True)
+    return np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+
+
 def _edge_uses(faces):
     he = np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2)
     return he
@@ -79,14 +91,7 @@ def test_a_curved_region_with_small_holes_takes_less_seam_filled_than_cut_to_a_d
     from texture.unwrap import UnwrapConfig
     from texture.unwrap_islands import flatten_region, holed_rule
 
-    s = trimesh.creation.icosphere(subdivisions=4)
-    c = s.vertices[s.faces].mean(1)
-    keep = c[:, 2] > -0.2
-    rng = np.random.default_rng(3)
-    inner = np.flatnonzero(keep & (c[:, 2] > 0.2))
-    keep[rng.choice(inner, 6, replace=False)] = False
-    vid, inv = np.unique(s.faces[keep], return_inverse=True)
-    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    xyz, faces = _holed_cap()
     cfg = UnwrapConfig()
     got = flatten_filled(xyz, faces, RelaxConfig(iterations=200, min_gain=1e-4), cfg.slit_target, cfg.max_slits)
     assert got is not None
@@ -112,14 +117,7 @@ def test_a_filled_flattening_stops_where_its_seam_would_pass_what_it_may_add():
     from texture.unwrap import UnwrapConfig
     from texture.unwrap_islands import flatten_region, holed_rule
 
-    s = trimesh.creation.icosphere(subdivisions=4)
-    c = s.vertices[s.faces].mean(1)
-    keep = c[:, 2] > -0.2
-    rng = np.random.default_rng(3)
-    inner = np.flatnonzero(keep & (c[:, 2] > 0.2))
-    keep[rng.choice(inner, 6, replace=False)] = False
-    vid, inv = np.unique(s.faces[keep], return_inverse=True)
-    xyz, faces = np.asarray(s.vertices)[vid], inv.reshape(-1, 3)
+    xyz, faces = _holed_cap()
     cfg, relax = UnwrapConfig(), RelaxConfig(iterations=200, min_gain=1e-4)
     free = flatten_filled(xyz, faces, relax, cfg.slit_target, cfg.max_slits)
     assert free is not None and free.added > 0.1  # slits were cut (no handles: all of it is slits)
