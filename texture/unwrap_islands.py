@@ -171,9 +171,9 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
             disk = None
         # the filled flattening is kept only where it adds no more seam than the cuts to a disk
         # it saves: its slits stop there (and it is dropped) instead of being relaxed for nothing
-        saves = np.inf if disk is None else cut_seam(p, f, disk)
-        filled = None if holed is None or len(f) > holed.max_faces else flatten_filled(
-            p, f, holed.relax, holed.within, holed.max_slits, min(max_added, saves))
+        fill = holed is not None and len(f) <= holed.max_faces
+        saves = cut_seam(p, f, disk) if fill and disk is not None else np.inf
+        filled = flatten_filled(p, f, holed.relax, holed.within, holed.max_slits, min(max_added, saves)) if fill else None
         if filled is not None and filled.added <= saves:
             # relaxed and slit already: the disk steps leave it as it is
             stats["filled"] = stats.get("filled", 0) + 1
