@@ -31,6 +31,13 @@ compared:
    (its fewest possible seams), or one at ``cfg.long_max_islands`` (a cut takes it past the
    island target), is halved only for ``cfg.pack_first_seam_gain``.
 
+   **Protrusions** (:mod:`texture.spikes`) are candidates of the same rounds: a limb or
+   an arm left on a body's island unrolls as a strip sticking out of it, which the
+   halvings' positions (15-85 % of the area along an axis) never cut off; cut at its
+   neck it costs its width in seam. Such a cut is short, so the per-length rule makes it
+   first; where the rounds made one and end below ``cfg.pack_target`` they run again
+   without them, and the better packing is kept (:func:`choose_layout`).
+
 3. **Quarter turns** (:func:`texture.layout_packing.quarter_turned`), last: the chosen
    islands, each turned to its minimum-area rectangle, then each of the ``TURNED_ISLANDS``
    largest by a quarter turn (0, 90, 180 or 270 degrees: rotations, never a mirror), packed with xatlas's own turns off
@@ -100,6 +107,7 @@ from .pack import Packing, pack_islands
 from .parallel import MIN_FACES, parallel_map
 from .regions import face_adjacency
 from .scale_search import estimate_layouts
+from .spikes import spike_cuts
 from .unwrap_islands import Island
 
 #: the modes an uncut layout is packed in first (the last mode needs turns chosen for it)
@@ -144,20 +152,21 @@ class LayoutChoice:
 
 
 def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool,
-              middle_only: bool = False) -> list[tuple[list[Island], dict]]:
+              middle_only: bool = False, spikes: bool = False) -> list[tuple[list[Island], dict]]:
     """Every halving tried this round: (islands after it, its description). ``first_seam``:
     the halvings :func:`may_halve` refuses (of a part that flattened as one island, its first
     seam, or of a part at ``cfg.long_max_islands``, past the island target), which must buy
     ``cfg.pack_first_seam_gain``; else the others. ``middle_only``: the even halvings only
-    (:func:`_paired_halvings`)."""
+    (:func:`_paired_halvings`). ``spikes``: each of the same islands' protrusions cut off at
+    its neck (:func:`texture.spikes.spike_cuts`) is a candidate too."""
     part, per_comp = island_parts(islands, comp)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
-    jobs, tried = [], []
+    jobs, tried, adjs = [], [], {}
     for rank, k in enumerate(np.argsort(area, kind="stable")[::-1][:PACK_CUT_ISLANDS]):
         count = int(per_comp[part[k]])
         if may_halve(count, cfg) == first_seam:
             continue
-        adj = face_adjacency(islands[k].xyz, islands[k].faces)  # once for its six halvings
+        adj = adjs[k] = face_adjacency(islands[k].xyz, islands[k].faces)  # once for its six halvings
         for along in (False, True):
             for where, cuts in zip(("middle", "low_quarter", "high_quarter")[:1 if middle_only else 3], PACK_CUTS):
                 jobs.append((islands[k], along, cuts, adj))
@@ -166,8 +175,15 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool,
     # the pool where the islands are large (the 111k-face scan: 18 a round, a quarter of its packing)
     halved_faces = sum(len(islands[k].faces) for k in {k for k, _ in tried})  # each island once
     done = parallel_map(_halve_job, jobs, parallel=halved_faces >= MIN_FACES)
-    return [(islands[:k] + islands[k + 1:] + halved[0], {**d, "cut_length": halved[1], "first_seam": first_seam})
-            for (k, d), halved in zip(tried, done) if halved is not None]
+    out = [(islands[:k] + islands[k + 1:] + halved[0], {**d, "cut_length": halved[1], "first_seam": first_seam})
+           for (k, d), halved in zip(tried, done) if halved is not None]
+    if spikes and not middle_only:
+        for k, d in dict(tried).items():  # each island halved above, once
+            for pieces, length, what in spike_cuts(islands[k], adjs[k]):
+                out.append((islands[:k] + islands[k + 1:] + pieces,
+                            {"island_rank": d["island_rank"], "along_axis": None, "at": "spike", **what,
+                             "cut_length": length, "first_seam": first_seam}))
+    return out
 
 
 def _halve_job(job, _shared=None):
@@ -181,10 +197,11 @@ def _halve_job(job, _shared=None):
 Ranked = tuple[list[tuple[list[Island], dict]], list[tuple[int, int]]]
 
 
-def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, first_seam: bool = False) -> Ranked:
-    """Every halving this round (:func:`_halvings`), each guessed in :data:`HALVING_MODES` by
-    one unbounded pack, and the best guesses."""
-    cands = _halvings(islands, comp, cfg, first_seam)
+def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, first_seam: bool = False,
+                     spikes: bool = False) -> Ranked:
+    """Every halving this round (:func:`_halvings`, with ``spikes``), each guessed in
+    :data:`HALVING_MODES` by one unbounded pack, and the best guesses."""
+    cands = _halvings(islands, comp, cfg, first_seam, spikes=spikes)
     return cands, _best_guesses([c for c, _ in cands], islands, cfg, cache)
 
 
@@ -286,23 +303,63 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
 def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
     connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig` or a
-    :class:`LayoutGoal` (the export's)."""
+    :class:`LayoutGoal` (the export's).
+
+    The rounds are greedy, and a protrusion's cut (:mod:`texture.spikes`) is short, so it
+    gains the most per length and is made first; where the rounds made one and still end
+    below ``cfg.pack_target``, they are run again without such cuts and the layout that packs
+    better is kept: which cuts add up to the most is not known from the first (on the
+    benchmark fits' limbs, protrusions cut off first packed 0.567 where three halvings
+    packed 0.576). Where none was made, the rounds without them would make the same cuts
+    (the candidates they share are ranked alike), and are not run."""
     cache: dict = {}  # outlines of the islands tried (:func:`outline_arrays`)
-    best = best_packed([islands] * len(UNCUT_MODES), list(UNCUT_MODES), cfg, cache)
-    if best is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
+    uncut = best_packed([islands] * len(UNCUT_MODES), list(UNCUT_MODES), cfg, cache)
+    if uncut is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
         return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
                                                   padding=cfg.padding), {"mode": 0, "halvings": []})
-    stats = {"utilization_uncut": best.utilization, "halvings": []}
+    best, stats = _exhaustive(*_rounds(uncut, comp, cfg, cache, spikes=True), cfg, cache)
+    if best.utilization < cfg.pack_target and any(h["at"] == "spike" for h in stats["halvings"]):
+        plain, plain_stats = _exhaustive(*_rounds(uncut, comp, cfg, cache, spikes=False), cfg, cache)
+        spiked = best.utilization
+        if plain.utilization > best.utilization:
+            best, stats = plain, {**plain_stats, "spike_candidates": stats["spike_candidates"]}
+        stats["with_spikes"], stats["without_spikes"] = spiked, plain.utilization
+    stats["mode"] = best.mode
+    return LayoutChoice(best.placed, whole_islands(best.placed, best.index, best.packing), stats)
+
+
+def _exhaustive(best: Packed, stats: dict, cfg, cache: dict) -> tuple[Packed, dict]:
+    """``best`` packed with xatlas's exhaustive placement where that packs tighter (module
+    docstring, step 5), and ``stats`` with what it did."""
+    stats["utilization_before_brute"] = best.utilization
+    t0 = time.perf_counter()
+    brute = brute_packed(best, cfg, cache)
+    stats["brute_force_seconds"] = time.perf_counter() - t0
+    if brute is not None:
+        best = brute
+        stats["brute_force"] = True
+    return best, stats
+
+
+def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool) -> tuple[Packed, dict]:
+    """The halving rounds from the uncut layout's packing ``uncut``, then the quarter turns,
+    the halving that fell short quarter-turned and the paired halvings (module docstring,
+    steps 2-4): (the packing, what was done). ``spikes``: protrusions cut off at their necks
+    are candidates of the ordinary rounds too."""
+    best = uncut
+    stats = {"utilization_uncut": best.utilization, "halvings": [], "spike_candidates": 0}
     fell_short = None  # the ordinary round at which the rounds ended, its halving not paying
     first: Ranked = ([], [])
     for _ in range(cfg.pack_max_cuts):
         if best.utilization >= cfg.pack_target:
             break
-        ranked = _ranked_halvings(best.islands, comp, cfg, cache)
+        ranked = _ranked_halvings(best.islands, comp, cfg, cache, spikes=spikes)
+        stats["spike_candidates"] += sum(d["at"] == "spike" for _, d in ranked[0])
         got = _best_halving(ranked, cfg, best.utilization, best.utilization + cfg.pack_cut_gain, cache)
         if got is None:
             # a part's first seam (it flattened as one island) must buy more
-            first = _ranked_halvings(best.islands, comp, cfg, cache, True)
+            first = _ranked_halvings(best.islands, comp, cfg, cache, True, spikes=spikes)
+            stats["spike_candidates"] += sum(d["at"] == "spike" for _, d in first[0])
             got = _best_halving(first, cfg, best.utilization, best.utilization + cfg.pack_first_seam_gain, cache)
             if got is None:
                 fell_short = ranked
@@ -330,12 +387,4 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
         if pair is not None:
             best = quarter_turned(pair[0].islands, cfg, cache, pair[0].utilization) or pair[0]
             stats["halvings"] = made + [{**d, "utilization": best.utilization, "paired": True} for d in pair[1]]
-    stats["utilization_before_brute"] = best.utilization
-    t0 = time.perf_counter()
-    brute = brute_packed(best, cfg, cache)
-    stats["brute_force_seconds"] = time.perf_counter() - t0
-    if brute is not None:
-        best = brute
-        stats["brute_force"] = True
-    stats["mode"] = best.mode
-    return LayoutChoice(best.placed, whole_islands(best.placed, best.index, best.packing), stats)
+    return best, stats

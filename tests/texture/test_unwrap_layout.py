@@ -258,6 +258,8 @@ def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned(monkeypa
     from texture.halving import halve_across
 
     monkeypatch.setattr(layout, "halve_across", lambda *a, **k: halve_across(*a, **k, band=False))
+    # nor protrusion cuts: a half comb's tooth cut off pays in the rounds themselves (0.62)
+    monkeypatch.setattr(layout, "spike_cuts", lambda *a, **k: [])
     comb = _comb()
     speck = _grid_island(1, 1, 0.02)
     speck = Island(speck.faces, speck.uv, speck.xyz + [5.0, 0.0, 0.0], np.arange(len(speck.faces)) + len(comb.faces),
@@ -438,3 +440,70 @@ def test_a_round_makes_the_shortest_cut_that_reaches_the_target_else_the_best_ga
     assert _chosen(opts((0.506, 2.70), (0.504, 2.70)), cfg, 0.357)[2] == 0
     # equal cuts reaching the target (one halving in two packing modes): the better packed
     assert _chosen(opts((0.61, 1.0), (0.65, 1.0), (0.70, 1.5)), cfg, 0.5)[2] == 1
+
+
+def _block_with_strip(block: int = 12, strip_w: int = 2, strip_l: int = 18, cell: float = 0.37) -> Island:
+    """A flat ``block``-by-``block`` grid of ``cell``-sized cells with a strip ``strip_w``
+    cells wide and ``strip_l`` cells long sticking out of the middle of one side (UV = xy)."""
+    mask = np.zeros((block, block + strip_l), bool)
+    mask[:, :block] = True
+    mid = block // 2 - strip_w // 2
+    mask[mid:mid + strip_w, block:] = True
+    g = _grid_island(mask.shape[1], mask.shape[0], cell)
+    faces = g.faces[np.tile(mask.ravel(), 2)]
+    vid, inv = np.unique(faces, return_inverse=True)
+    faces = inv.reshape(-1, 3)
+    return Island(faces, g.uv[vid], g.xyz[vid], np.arange(len(faces)), np.arange(len(vid)), 0)
+
+
+def test_a_strip_sticking_out_of_a_block_is_cut_off_at_its_neck():
+    """The protrusion found by the footprint's opening is the strip, cut where it meets the
+    block: the cut's 3D length is the strip's width (2 cells of 0.37) and the piece cut off
+    holds the strip's area, within a row of cells; the pieces keep the island's UVs. A plain
+    block (a square: the opening rounds only its corners) has no protrusion."""
+    from texture.regions import face_adjacency
+    from texture.spikes import spike_cuts
+
+    isl = _block_with_strip()
+    got = spike_cuts(isl, face_adjacency(isl.xyz, isl.faces))
+    assert got, "the strip is a protrusion"
+    (body, strip), length, what = min(got, key=lambda g: abs(g[1] - 2 * 0.37))
+    assert length == pytest.approx(2 * 0.37, rel=1e-9)
+    strip_area, total = 2 * 18 * 0.37 ** 2, (12 * 12 + 2 * 18) * 0.37 ** 2
+    assert abs(what["share"] * total - strip_area) <= 2 * 0.37 ** 2 + 1e-9
+    assert len(body.faces) + len(strip.faces) == len(isl.faces)
+    for piece in (body, strip):  # each piece's UVs are the island's at its vertices
+        np.testing.assert_array_equal(piece.uv, isl.uv[piece.work_vertex])
+    block = _grid_island(12, 12, 0.37)
+    assert spike_cuts(block, face_adjacency(block.xyz, block.faces)) == []
+
+
+def test_the_packing_search_cuts_a_protrusion_off_where_it_packs_better():
+    """A 16-cell block with a strip 2 x 12 cells (8.6 % of the area: past every halving's
+    positions, 15-85 % along the axis) packs 0.36 whole; the search cuts the strip off at its
+    neck (as long as the strip is wide, where the block's halvings cut 16 cells across) and
+    packs above the target, with one scale and no overlap."""
+    isl = _block_with_strip(block=16, strip_l=12)
+    comp = np.zeros(len(isl.faces), np.int64)
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    got = choose_layout([isl], comp, cfg)
+    assert got.stats["utilization_uncut"] < 0.6 <= got.packing.utilization
+    spikes = [h for h in got.stats["halvings"] if h["at"] == "spike"]
+    assert [h["at"] for h in got.stats["halvings"]] == ["spike"]
+    assert spikes[0]["cut_length"] == pytest.approx(2 * 0.37, rel=1e-9)
+    _, faces, island = island_arrays(got.islands)
+    assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
+
+
+def test_rounds_that_end_below_the_target_with_protrusions_cut_are_run_again_without():
+    """Where the rounds cut a protrusion off and still end below the target (0.95 here), the
+    rounds without such cuts run too and the better layout is kept: what is delivered packs
+    at least as well as either. Where they reach it (0.6), they are not run."""
+    isl = _block_with_strip(block=16, strip_l=12)
+    comp = np.zeros(len(isl.faces), np.int64)
+    got = choose_layout([isl], comp, UnwrapConfig(resolution=512, padding=4, pack_target=0.95))
+    st = got.stats
+    assert "with_spikes" in st and "without_spikes" in st
+    assert got.packing.utilization == max(st["with_spikes"], st["without_spikes"])
+    reached = choose_layout([isl], comp, UnwrapConfig(resolution=512, padding=4))
+    assert "without_spikes" not in reached.stats
