@@ -36,10 +36,10 @@ from .halving import BAND_MAX_FACES, ZIGZAG, _one_piece, _pieces, _sub_island
 from .raster import face_id_image
 from .unwrap_islands import Island
 
-#: texels along the longer side of an island's footprint. A protrusion is found where it is
-#: at least a few texels wide (``2 r`` with ``r`` of 0.2 of the largest inscribed radius:
-#: 8 texels and more on a footprint whose body is a third of its length); the raster costs
-#: one pass over the faces
+#: texels along the longer side of an island's footprint: the smallest opening (``r`` of 0.22
+#: of the largest inscribed radius) is 14 texels wide on a footprint whose body is a third
+#: of its length wide, and openings under 2 texels are not made; the raster costs one pass
+#: over the faces
 RASTER = 192
 #: opening radii, as fractions of the footprint's largest inscribed radius: from
 #: protrusions about as wide as the body's own half down to a fifth of that
