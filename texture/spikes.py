@@ -33,7 +33,7 @@ from mnacore.triangles import triangle_areas
 from .borders import min_cut_labels
 from .ears import smooth_cut
 from .halving import BAND_MAX_FACES, ZIGZAG, _one_piece, _pieces, _sub_island
-from .raster import face_id_image
+from .raster import face_id_image, uv_to_pixel
 from .unwrap_islands import Island
 
 #: texels along the longer side of an island's footprint: the smallest opening (``r`` of 0.22
@@ -59,9 +59,7 @@ def _footprint(isl: Island) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     face, _ = face_id_image(t[isl.faces], RASTER, RASTER)
     mask = face >= 0
     mask |= ndimage.binary_closing(mask)  # faces thinner than a texel leave holes in a strip
-    c = t[isl.faces].mean(1) * RASTER
-    col = np.clip(np.rint(c[:, 0] - 0.5).astype(np.int64), 0, RASTER - 1)
-    row = np.clip(np.rint(RASTER - 0.5 - c[:, 1]).astype(np.int64), 0, RASTER - 1)
+    col, row = np.clip(np.rint(uv_to_pixel(t[isl.faces].mean(1), RASTER, RASTER)), 0, RASTER - 1).astype(np.int64).T
     return face, mask, np.stack([row, col]), ext / (RASTER - 1)
 
 
@@ -85,11 +83,10 @@ def spike_cuts(isl: Island, adj) -> list[tuple[list[Island], float, dict]]:
         in_body = body[row, col]
         count, piece = _pieces(adj, ~in_body)
         outside = np.flatnonzero(~in_body)
-        for p in range(count):
+        shares = np.bincount(piece, weights=area[outside], minlength=count) / total
+        for p in np.flatnonzero((shares >= MIN_SHARE) & (shares <= MAX_SHARE)):
             sel = np.zeros(len(area), bool)
             sel[outside[piece == p]] = True
-            if not MIN_SHARE <= area[sel].sum() / total <= MAX_SHARE:
-                continue
             # the body's faces within r of the protrusion: room for the cut on the body's side
             near = ndimage.distance_transform_edt(~np.isin(face, np.flatnonzero(sel)))[row, col] <= r
             lo = _neck_cut(isl, adj, sel, to_body, in_body & near, r)
@@ -121,12 +118,11 @@ def _neck_cut(isl: Island, adj, sel: np.ndarray, to_body: np.ndarray, near_body:
     if not far.any():  # a stub, not a protrusion: an opening rounds every corner off by 0.41 r
         return None
     free = (sel & ~far) | near_body
-    lo = sel
     if 0 < free.sum() <= BAND_MAX_FACES:
         got = min_cut_labels(far.astype(np.int64), free, adj, 0, 1) == 1
         if _one_piece(adj, got) and _one_piece(adj, ~got):
-            lo = got
-    if not (_one_piece(adj, lo) and _one_piece(adj, ~lo)):
+            return smooth_cut(isl, got)[0]
+    if not (_one_piece(adj, sel) and _one_piece(adj, ~sel)):
         return None
-    return smooth_cut(isl, lo)[0]
+    return smooth_cut(isl, sel)[0]
 
