@@ -56,6 +56,7 @@ On the 13 benchmark fits (1000 steps) this merged 10 pairs on 6 meshes (torus se
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
@@ -291,9 +292,12 @@ def _union(islands: list[Island], group: tuple[int, ...], xyz, work_faces, inter
     return (new, spare) if spare > 0 else ([], 0.0)
 
 
-def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg) -> tuple[list[Island], dict]:
+def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg,
+                  note: Callable[[str], None] | None = None) -> tuple[list[Island], dict]:
     """(islands, stats): see the module docstring. ``adj``: the working mesh's face adjacency
-    (:func:`texture.regions.face_adjacency`); ``cfg``: a :class:`texture.unwrap.UnwrapConfig`."""
+    (:func:`texture.regions.face_adjacency`); ``cfg``: a :class:`texture.unwrap.UnwrapConfig`.
+    ``note``: called at each round with a line saying how far the merge is (the stage bar's
+    text: the stage can run a minute, refused trials most of it)."""
     st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": [], "skipped_strained": 0, "skipped_holding_refused": 0}
     if cfg.merge_max_faces <= 0 or len(islands) < 2:
         return islands, st
@@ -317,7 +321,7 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     failed: dict[tuple[int, int], tuple[Island, Island]] = {}
     refused: list[FailedUnion] = []  # trials refused for their distortion (:func:`_holds_failed`)
     held: dict[tuple[int, int], tuple[Island, Island]] = {}  # pairs skipped for holding one
-    first = True
+    first, rounds = True, 0
     while True:  # each round merges a pair or fails one more: it ends when no pair is left
         shared = _shared_borders(islands, adj, len(work_faces))
         todo: list[tuple[int, ...]] = _whole_groups(islands, shared, cfg, strain, xyz, work_faces) if first else []
@@ -326,6 +330,9 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
                        (refused, held))
         if not todo:
             break
+        rounds += 1
+        if note is not None:
+            note(f"merge round {rounds}: {len(todo)} to try, {st['tried']} tried, {st['merges']} merged")
         seam_of = [sum(seam[k] for k in g) for g in todo]
         faces_of = [sum(len(islands[k].faces) for k in g) for g in todo]
         unions = [_union(islands, g, xyz, work_faces, interior, s, holed) for g, s in zip(todo, seam_of)]

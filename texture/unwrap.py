@@ -308,7 +308,8 @@ class _Stages:
 def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = None,
                 progress: Callable[[str], None] | None = None) -> Unwrap:
     """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring.
-    ``progress``: called with each stage's name (:data:`STAGES`) as it starts."""
+    ``progress``: called with each stage's name (:data:`STAGES`) as it starts; where it has a
+    ``note`` attribute, that is called with a stage's own progress (the merge's rounds)."""
     cfg = cfg or UnwrapConfig()
     stage = _Stages(progress)
     stage("prepare")
@@ -338,7 +339,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), prep.component)
     fstats["whole_preferred"] = swapped
     stage("merge")
-    islands, merge_stats = merge_islands(islands, xyz, prep.work_faces, adj, cfg)
+    islands, merge_stats = merge_islands(islands, xyz, prep.work_faces, adj, cfg, note=getattr(progress, "note", None))
     stage("split")
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
     islands, long_stats = split_long_islands(islands, prep.component, cfg)

@@ -151,6 +151,11 @@ def _stage_bar(enabled: bool):
         else:
             bar.set_postfix_str(name)
 
+    def note(text: str) -> None:  # a stage's own progress (the merge's rounds): same step, new text
+        if not state["closed"]:
+            bar.set_postfix_str(text)
+
+    step.note = note
     return step
 
 

@@ -735,6 +735,27 @@ def test_progress_names_every_stage_in_order_and_each_is_timed():
     assert list(t) == list(STAGES) and all(v >= 0 for v in t.values())
 
 
+def test_the_stage_bar_shows_a_stages_own_progress(capsys):
+    """``mna unwrap``'s bar: a stage's note (the merge's rounds, which can run a minute) is
+    shown as the bar's text; after the bar closed, a note writes nothing; a disabled bar
+    takes notes silently."""
+    from texture.unwrap_run import _stage_bar
+
+    step = _stage_bar(True)
+    step("merge")
+    step.note("merge round 2: 1 to try, 3 tried, 1 merged")
+    assert "merge round 2: 1 to try, 3 tried, 1 merged" in capsys.readouterr().err
+    step(None)
+    capsys.readouterr()
+    step.note("merge round 3: 1 to try, 4 tried, 1 merged")
+    assert "round 3" not in capsys.readouterr().err
+    quiet = _stage_bar(False)
+    quiet("merge")
+    quiet.note("merge round 1: 2 to try, 0 tried, 0 merged")
+    quiet(None)
+    assert capsys.readouterr().err == ""
+
+
 def test_a_slit_heads_for_degenerate_faces():
     """Faces the map shrank to nothing (infinite energy: the far end of a bag) are as
     distorted as the most distorted finite face, not undistorted: on a flat grid sheet with a

@@ -146,9 +146,11 @@ def test_merge_gives_a_union_the_islands_slit_budget():
         interior = interior_edges(f)
         seam = sum(island_seam(i, interior) for i in islands)
         assert len(islands) == 2 and seam > 10.0
-        merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+        notes = []
+        merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg, note=notes.append)
         (trial,) = st["trials"]
         assert st["merges"] == merges and len(merged) == 2 - merges
+        assert notes == ["merge round 1: 1 to try, 0 tried, 0 merged"]  # one round, said before it runs
         if merges == 0:
             assert trial["excess"] > cfg.slit_target
         else:
