@@ -263,7 +263,7 @@ def _flattened(xyz, prep, label, reg, cfg: UnwrapConfig, stage) -> tuple[list, d
     return islands, fstats
 
 
-def _packed(islands: list, comp: np.ndarray, cfg: UnwrapConfig):
+def _packed(islands: list, comp: np.ndarray, cfg: UnwrapConfig, note: Callable[[str], None] | None = None):
     """(packing, islands as packed, vertex offset of each island, islands reflected, layout
     search stats): every island counter-clockwise like the input's winding (no island mirrored
     as seen from outside; one whose faces all turned clockwise is reflected in u), then turned
@@ -274,7 +274,7 @@ def _packed(islands: list, comp: np.ndarray, cfg: UnwrapConfig):
         if signed_areas(isl.uv, isl.faces).sum() < 0:
             isl.uv = isl.uv * np.array([-1.0, 1.0])
             mirrored += 1
-    choice = choose_layout(islands, comp, cfg)
+    choice = choose_layout(islands, comp, cfg, note)
     offsets = np.cumsum([0] + [len(isl.uv) for isl in choice.islands])
     return choice.packing, choice.islands, offsets, mirrored, choice.stats  # the packer never mirrors an island (texture.pack)
 
@@ -309,7 +309,8 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
                 progress: Callable[[str], None] | None = None) -> Unwrap:
     """UV-map ``(vertices (V,3), faces (F,3))`` (input frame) with ``charts``; see module docstring.
     ``progress``: called with each stage's name (:data:`STAGES`) as it starts; where it has a
-    ``note`` attribute, that is called with a stage's own progress (the merge's rounds)."""
+    ``note`` attribute, that is called with a stage's own progress (the merge's rounds, the
+    packing search's steps)."""
     cfg = cfg or UnwrapConfig()
     stage = _Stages(progress)
     stage("prepare")
@@ -339,7 +340,8 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     islands, swapped = prefer_whole(islands, fstats.pop("whole_trials", {}), prep.component)
     fstats["whole_preferred"] = swapped
     stage("merge")
-    islands, merge_stats = merge_islands(islands, xyz, prep.work_faces, adj, cfg, note=getattr(progress, "note", None))
+    note = getattr(progress, "note", None)
+    islands, merge_stats = merge_islands(islands, xyz, prep.work_faces, adj, cfg, note=note)
     stage("split")
     islands, split_stats = refine_islands(islands, xyz, prep.work_faces, cfg)
     islands, long_stats = split_long_islands(islands, prep.component, cfg)
@@ -352,7 +354,7 @@ def unwrap_mesh(vertices, faces, charts: ChartGrids, cfg: UnwrapConfig | None = 
     split_stats.update(audit_stats)
 
     stage("pack")
-    packing, islands, offsets, mirrored, layout_stats = _packed(islands, prep.component, cfg)
+    packing, islands, offsets, mirrored, layout_stats = _packed(islands, prep.component, cfg, note)
     stage(None)
     t = stage.timings
     mesh, face_island, out_stats = _output_mesh(prep, islands, packing.uv, offsets)

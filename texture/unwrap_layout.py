@@ -84,6 +84,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -300,7 +301,8 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     return got, descriptions
 
 
-def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
+def choose_layout(islands: list[Island], comp: np.ndarray, cfg,
+                  note: Callable[[str], None] | None = None) -> LayoutChoice:
     """The islands turned (and halved) as packs best; see module docstring. ``comp`` is the
     connected component of every working face; ``cfg`` a :class:`texture.unwrap.UnwrapConfig` or a
     :class:`LayoutGoal` (the export's).
@@ -311,15 +313,21 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     better is kept: which cuts add up to the most is not known from the first (on the
     benchmark fits' limbs, protrusions cut off first packed 0.567 where three halvings
     packed 0.576). Where none was made, the rounds without them would make the same cuts
-    (the candidates they share are ranked alike), and are not run."""
+    (the candidates they share are ranked alike), and are not run.
+
+    ``note``: called with a line as each step of the search starts (the stage bar's text: the
+    search runs 2-35 s on the unwraps of benchmarks/RESULTS.md, 14 s on a 1,000-face mesh of
+    12 islands); it does not change what is chosen."""
+    say = note or (lambda _: None)
     cache: dict = {}  # outlines of the islands tried (:func:`outline_arrays`)
     uncut = best_packed([islands] * len(UNCUT_MODES), list(UNCUT_MODES), cfg, cache)
     if uncut is None:  # xatlas placed nothing: the packer's own fallbacks (a shelf packing)
         return LayoutChoice(islands, pack_islands(*island_arrays(islands), resolution=cfg.resolution,
                                                   padding=cfg.padding), {"mode": 0, "halvings": []})
-    best, stats = _exhaustive(*_rounds(uncut, comp, cfg, cache, spikes=True), cfg, cache)
+    best, stats = _exhaustive(*_rounds(uncut, comp, cfg, cache, spikes=True, say=say), cfg, cache, say)
     if best.utilization < cfg.pack_target and any(h["at"] == "spike" for h in stats["halvings"]):
-        plain, plain_stats = _exhaustive(*_rounds(uncut, comp, cfg, cache, spikes=False), cfg, cache)
+        say("pack: the rounds again, without protrusion cuts")
+        plain, plain_stats = _exhaustive(*_rounds(uncut, comp, cfg, cache, spikes=False, say=say), cfg, cache, say)
         spiked = best.utilization
         if plain.utilization > best.utilization:
             best, stats = plain, {**plain_stats, "spike_candidates": stats["spike_candidates"]}
@@ -328,9 +336,10 @@ def choose_layout(islands: list[Island], comp: np.ndarray, cfg) -> LayoutChoice:
     return LayoutChoice(best.placed, whole_islands(best.placed, best.index, best.packing), stats)
 
 
-def _exhaustive(best: Packed, stats: dict, cfg, cache: dict) -> tuple[Packed, dict]:
+def _exhaustive(best: Packed, stats: dict, cfg, cache: dict, say: Callable[[str], None]) -> tuple[Packed, dict]:
     """``best`` packed with xatlas's exhaustive placement where that packs tighter (module
     docstring, step 5), and ``stats`` with what it did."""
+    say(f"pack: exhaustive placement (utilisation {best.utilization:.2f})")
     stats["utilization_before_brute"] = best.utilization
     t0 = time.perf_counter()
     brute = brute_packed(best, cfg, cache)
@@ -341,7 +350,8 @@ def _exhaustive(best: Packed, stats: dict, cfg, cache: dict) -> tuple[Packed, di
     return best, stats
 
 
-def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool) -> tuple[Packed, dict]:
+def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool,
+            say: Callable[[str], None]) -> tuple[Packed, dict]:
     """The halving rounds from the uncut layout's packing ``uncut``, then the quarter turns,
     the halving that fell short quarter-turned and the paired halvings (module docstring,
     steps 2-4): (the packing, what was done). ``spikes``: protrusions cut off at their necks
@@ -350,9 +360,10 @@ def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool) -> 
     stats = {"utilization_uncut": best.utilization, "halvings": [], "spike_candidates": 0}
     fell_short = None  # the ordinary round at which the rounds ended, its halving not paying
     first: Ranked = ([], [])
-    for _ in range(cfg.pack_max_cuts):
+    for r in range(cfg.pack_max_cuts):
         if best.utilization >= cfg.pack_target:
             break
+        say(f"pack round {r + 1}: utilisation {best.utilization:.2f}, {len(best.islands)} islands")
         ranked = _ranked_halvings(best.islands, comp, cfg, cache, spikes=spikes)
         stats["spike_candidates"] += sum(d["at"] == "spike" for _, d in ranked[0])
         got = _best_halving(ranked, cfg, best.utilization, best.utilization + cfg.pack_cut_gain, cache)
@@ -369,10 +380,12 @@ def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool) -> 
     stats["utilization_turned_as_xatlas"] = best.utilization
     cut = best  # the rounds' layout, on which their last rankings were made
     if len(best.islands) > 1:
+        say(f"pack: quarter turns (utilisation {best.utilization:.2f})")
         best = quarter_turned(best.islands, cfg, cache, best.utilization) or best
     if fell_short is not None and best.utilization < cfg.pack_target:
         # the halving that fell short (its round's guesses kept), judged as it will be
         # delivered: quarter-turned too
+        say("pack: the last halving, quarter-turned")
         missed = _best_halving(fell_short, cfg, None, 0.0, cache)
         turned_halving = None if missed is None else quarter_turned(missed[0].islands, cfg, cache,
                                                                      best.utilization + cfg.pack_cut_gain)
@@ -383,6 +396,7 @@ def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool) -> 
     # halving kept above
     made = [h for h in stats["halvings"] if not h.get("after_quarter_turns")]
     if fell_short is not None and best.utilization < cfg.pack_target and len(made) + 2 <= cfg.pack_max_cuts:
+        say("pack: two cuts at once")
         pair = _paired_halvings(cut.islands, comp, cfg, cache, [fell_short, first], best.utilization)
         if pair is not None:
             best = quarter_turned(pair[0].islands, cfg, cache, pair[0].utilization) or pair[0]

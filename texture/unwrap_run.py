@@ -151,7 +151,7 @@ def _stage_bar(enabled: bool):
         else:
             bar.set_postfix_str(name)
 
-    def note(text: str) -> None:  # a stage's own progress (the merge's rounds): same step, new text
+    def note(text: str) -> None:  # a stage's own progress (the merge's rounds, the packing search's steps): same step, new text
         if not state["closed"]:
             bar.set_postfix_str(text)
 

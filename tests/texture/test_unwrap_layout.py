@@ -156,6 +156,31 @@ def test_halvings_go_on_while_each_pays_until_the_target():
     assert verify_packing(got.packing.uv, faces, island, 512)[0] == 0
 
 
+def test_the_search_notes_each_step_as_it_starts_and_chooses_the_same():
+    """The packing search's notes (``mna unwrap``'s bar text): the comb above takes three
+    halving rounds (the third falls short), then the quarter turns, the halving that fell
+    short quarter-turned and the exhaustive placement, each noted as it starts, with the
+    utilisation it starts from; with the notes taken, it chooses what it chooses without."""
+    comb = _comb(teeth=4, height=10)
+    _, small = _pair()
+    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
+                   np.arange(len(small.uv)) + len(comb.uv), 1)
+    comp = np.zeros(len(comb.faces) + len(small.faces), np.int64)
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    notes: list[str] = []
+    got = choose_layout([comb, small], comp, cfg, note=notes.append)
+    quiet = choose_layout([comb, small], comp, cfg)
+    steps = [got.stats["utilization_uncut"]] + [h["utilization"] for h in got.stats["halvings"]]
+    assert [n.split(":")[0] for n in notes] == ["pack round 1", "pack round 2", "pack round 3"] + ["pack"] * 3
+    assert notes[:3] == [f"pack round {r + 1}: utilisation {u:.2f}, {r + 2} islands" for r, u in enumerate(steps[:3])]
+    assert notes[3] == f"pack: quarter turns (utilisation {got.stats['utilization_turned_as_xatlas']:.2f})"
+    assert notes[4] == "pack: the last halving, quarter-turned"
+    assert notes[5] == f"pack: exhaustive placement (utilisation {got.stats['utilization_before_brute']:.2f})"
+    assert got.stats["halvings"][-1].get("after_quarter_turns")
+    assert got.packing.utilization == quiet.packing.utilization
+    assert np.array_equal(got.packing.uv, quiet.packing.uv)
+
+
 def _right_triangle(n: int, cell: float, k: int) -> Island:
     """The lower-left half of an n-by-n grid of ``cell``-sized cells: a right isosceles triangle,
     legs ``n * cell``, as island ``k`` (working faces and vertices numbered from ``k`` times its size)."""
