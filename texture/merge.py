@@ -24,6 +24,13 @@ accepted pairs are merged, and a pair that failed is not tried again unless one 
 Rounds go on until no untried pair is left, also after a round that merged nothing: the
 pairs its matching left out are tried next (bob: 1 trial and no merge before, 6 trials and
 3 merges now, seam 6.68 -> 5.22).
+A round with fewer trials than worker processes also runs, on the idle ones, the trials the
+next round makes if all of this round's are refused (:func:`_ahead`); a trial is the same
+whenever its islands are, so the next round uses what ran ahead on islands still there
+instead of running it again. Refused trials are most of the stage's time and late rounds
+often hold one trial, so this shortens the stage without changing any result (lion
+118.9 -> 75.8 s, the same unwrap: benchmarks/RESULTS.md); where a trial merges, what ran
+ahead on its islands is dropped (that round takes as long as its longest trial).
 A union above ``cfg.merge_max_faces`` faces gets a cheaper trial (for time only: a trial
 costs a flattening of both islands again, and a failed two-resolution flattening falls back to
 SLIM at about a second per iteration at 50k faces): no slits, and no full-resolution SLIM where
@@ -64,6 +71,7 @@ from mnacore.triangles import triangle_areas
 
 from .flatten import is_disk
 from .islands import edge_keys, edge_use_counts, half_edges
+from .parallel import default_workers
 from .relax import boundary_edges, energy_excess
 from .unwrap_islands import HoledRule, Island, flatten_region, holed_rule, relax_islands, slit_islands
 
@@ -292,13 +300,39 @@ def _union(islands: list[Island], group: tuple[int, ...], xyz, work_faces, inter
     return (new, spare) if spare > 0 else ([], 0.0)
 
 
+def _key(islands: list[Island], group: tuple[int, ...]) -> tuple[int, ...]:
+    """A trial's key: the ids of its islands (the same islands flatten the same union)."""
+    return tuple(id(islands[k]) for k in group)
+
+
+def _ahead(islands: list[Island], shared: dict, todo: list, failed: dict, cfg, strain: list, skipped: dict,
+           xyz: np.ndarray, work_faces: np.ndarray, refused: tuple[list[FailedUnion], dict], idle: int) -> list:
+    """Up to ``idle`` pairs to try this round besides ``todo``: those the next round tries if
+    every trial of this one is refused (:func:`_pairs` with them failed; its bookkeeping on
+    copies). A trial is the same whenever its islands are, so where they are still there and
+    still chosen next round its result is used, not run again: a round of one trial leaves
+    the other cores idle, and refused trials are most of the stage's time (73-88 % on four
+    unseen meshes, benchmarks/RESULTS.md). Where a trial of this round merges, what ran ahead
+    on its islands is dropped: the round took as long as its longest trial."""
+    if idle <= 0:
+        return []
+    assumed = dict(failed)
+    for g in todo:
+        if len(g) == 2:
+            assumed[_key(islands, g)] = (islands[g[0]], islands[g[1]])
+    nxt = _pairs(islands, shared, assumed, cfg, strain, dict(skipped), xyz, work_faces, set(),
+                 (list(refused[0]), dict(refused[1])))
+    return nxt[:idle]
+
+
 def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg,
                   note: Callable[[str], None] | None = None) -> tuple[list[Island], dict]:
     """(islands, stats): see the module docstring. ``adj``: the working mesh's face adjacency
     (:func:`texture.regions.face_adjacency`); ``cfg``: a :class:`texture.unwrap.UnwrapConfig`.
     ``note``: called at each round with a line saying how far the merge is (the stage bar's
     text: the stage can run a minute, refused trials most of it)."""
-    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": [], "skipped_strained": 0, "skipped_holding_refused": 0}
+    st = {"merges": 0, "tried": 0, "seam_removed": 0.0, "trials": [], "skipped_strained": 0, "skipped_holding_refused": 0,
+          "ran_ahead": 0, "ran_ahead_used": 0}
     if cfg.merge_max_faces <= 0 or len(islands) < 2:
         return islands, st
     # a union above the face cap gets the two-resolution flattening only: where that fails,
@@ -314,6 +348,10 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
     holed = holed_rule(cfg)
     seam = [island_seam(isl, interior) for isl in islands]
     strain = [_strain(isl) for isl in islands]
+    # trials run ahead on cores a round leaves idle (:func:`_ahead`), by the ids of their
+    # islands: (those islands, kept alive so that no id is reused, (flattened union, spare seam))
+    ran: dict[tuple[int, ...], tuple[tuple[Island, ...], tuple[list[Island], float]]] = {}
+    workers = default_workers()
     skipped: dict[tuple[int, int], tuple[Island, Island]] = {}  # pairs not tried for their strain
     # pairs of islands (by identity) whose union failed; the islands are kept with their ids, so
     # that an island merged away and freed cannot hand its id to a new one (which would then
@@ -333,16 +371,25 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         rounds += 1
         if note is not None:
             note(f"merge round {rounds}: {len(todo)} to try, {st['tried']} tried, {st['merges']} merged")
-        seam_of = [sum(seam[k] for k in g) for g in todo]
-        faces_of = [sum(len(islands[k].faces) for k in g) for g in todo]
-        unions = [_union(islands, g, xyz, work_faces, interior, s, holed) for g, s in zip(todo, seam_of)]
-        trials = [u[0] for u in unions]
-        flat = [isl for t in trials for isl in t]
+        ahead = _ahead(islands, shared, todo, failed, cfg, strain, skipped, xyz, work_faces, (refused, held),
+                       workers - len(todo))
+        fresh = [g for g in todo + ahead if _key(islands, g) not in ran]
+        seam_run = [sum(seam[k] for k in g) for g in fresh]
+        unions = [_union(islands, g, xyz, work_faces, interior, s, holed) for g, s in zip(fresh, seam_run)]
+        flat = [isl for new, _ in unions for isl in new]
         relax_islands(flat, trial_cfg, cfg.slit_target)
         # a slit adds its length of seam: past the union's spare seam the trial is refused anyway;
         # a union above the face cap takes no slits (see the module docstring)
-        small = [(isl, spare) for n, (new, spare) in zip(faces_of, unions) for isl in new if n <= cfg.merge_max_faces]
+        small = [(isl, spare) for g, (new, spare) in zip(fresh, unions) for isl in new
+                 if sum(len(islands[k].faces) for k in g) <= cfg.merge_max_faces]
         slit_islands([isl for isl, _ in small], trial_cfg, [spare for _, spare in small])
+        for g, u in zip(fresh, unions):
+            ran[_key(islands, g)] = (tuple(islands[k] for k in g), u)
+        st["ran_ahead"] += len(fresh) - sum(g in todo for g in fresh)
+        st["ran_ahead_used"] += sum(g not in fresh for g in todo)
+        seam_of = [sum(seam[k] for k in g) for g in todo]
+        faces_of = [sum(len(islands[k].faces) for k in g) for g in todo]
+        trials = [ran.pop(_key(islands, g))[1][0] for g in todo]
         st["tried"] += len(todo)
         drop, add = set(), []
         for g, new, before, n in zip(todo, trials, seam_of, faces_of):
@@ -366,6 +413,8 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
                                            sum(a for a, _ in parts), sum(s for _, s in parts)))
         keep = [k for k in range(len(islands)) if k not in drop]
         islands = [islands[k] for k in keep] + add
+        alive = {id(isl) for isl in islands}
+        ran = {k: v for k, v in ran.items() if all(id(isl) in alive for isl in v[0])}
         seam = [seam[k] for k in keep] + [island_seam(i, interior) for i in add]
         strain = [strain[k] for k in keep] + [_strain(i) for i in add]
     st["skipped_strained"] = len(skipped)

@@ -211,6 +211,36 @@ def test_merge_tries_the_pairs_a_failed_round_left_out():
     assert energy_excess(tube.xyz, tube.uv, tube.faces) < 1e-3
 
 
+def test_trials_run_ahead_on_idle_cores_are_used_and_change_nothing(monkeypatch):
+    """The capsule above with two workers: each of its rounds has one trial, so the trial the
+    next round makes if this one is refused runs beside it (H + T2 beside H + T1, then T1 + T2
+    beside H + T2), and the next round uses it instead of running it again. With one worker
+    nothing runs ahead; trials, merges and every UV are the same."""
+    import texture.merge as merge
+
+    cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=0, slit_target=0.2)
+    v, f = _capsule()
+    c = v[f].mean(1)
+    parts = (np.flatnonzero(c[:, 2] > 0), np.flatnonzero((c[:, 2] < 0) & (c[:, 1] >= 0)),
+             np.flatnonzero((c[:, 2] < 0) & (c[:, 1] < 0)))
+    runs = {}
+    for workers in (1, 2):
+        islands = []
+        for lab, sel in enumerate(parts):
+            islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
+        relax_islands(islands, cfg)
+        monkeypatch.setattr(merge, "default_workers", lambda w=workers: w)
+        runs[workers] = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+    (one, st1), (two, st2) = runs[1], runs[2]
+    assert st1["ran_ahead"] == st1["ran_ahead_used"] == 0
+    assert st2["ran_ahead_used"] == 2 and st2["ran_ahead"] >= 2  # H + T2 and T1 + T2 were not run again
+    assert st2["trials"] == st1["trials"] and len(st2["trials"]) == 4
+    assert len(one) == len(two) == 2
+    for a, b in zip(one, two):
+        assert np.array_equal(a.work_faces, b.work_faces) and np.array_equal(a.faces, b.faces)
+        assert np.array_equal(a.uv, b.uv)
+
+
 def test_merge_skips_a_union_holding_a_refused_one_that_its_rest_cannot_dilute():
     """A sphere (1,280 faces) as two sides A, B (excess 0.089 and 0.081) and a polar cap C
     (0.004), bound 0.2, no slits. A + B, the sphere less its cap, is refused at excess 1.14;
