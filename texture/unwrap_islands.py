@@ -208,6 +208,9 @@ def flatten_region(xyz: np.ndarray, faces: np.ndarray, work_faces: np.ndarray, l
 
 #: label of the islands of a component flattened whole (:func:`whole_components`).
 WHOLE = -1
+#: below this many faces in all, islands are relaxed in this process: starting workers costs
+#: more than SLIM on them (:func:`relax_islands`; merge trials run ahead only from there too)
+POOL_FACES = 2000
 
 
 def whole_components(xyz, work_faces, comp, reg, cfg, fstats: dict) -> tuple[list[Island], set]:
@@ -280,7 +283,7 @@ def relax_islands(islands: list[Island], cfg, coarse_excess_limit: float = 0.0) 
     rcfg = relax_config(cfg, coarse_excess_limit)
     order = sorted((i for i in range(len(islands)) if not islands[i].holed), key=lambda i: -len(islands[i].faces))
     jobs = [(islands[i].xyz, islands[i].uv, islands[i].faces, rcfg) for i in order]
-    done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= 2000 and len(jobs) > 1)
+    done = parallel_map(_relax_job, jobs, parallel=sum(len(j[2]) for j in jobs) >= POOL_FACES and len(jobs) > 1)
     st = {"iterations_max": 0, "free": 0, "guarded": 0, "scaffold": 0, "kept_start": 0, "multires": 0}
     for i, (uv, s) in zip(order, done):
         islands[i].uv = uv

@@ -211,34 +211,53 @@ def test_merge_tries_the_pairs_a_failed_round_left_out():
     assert energy_excess(tube.xyz, tube.uv, tube.faces) < 1e-3
 
 
-def test_trials_run_ahead_on_idle_cores_are_used_and_change_nothing(monkeypatch):
-    """The capsule above with two workers: each of its rounds has one trial, so the trial the
-    next round makes if this one is refused runs beside it (H + T2 beside H + T1, then T1 + T2
-    beside H + T2), and the next round uses it instead of running it again. With one worker
-    nothing runs ahead; trials, merges and every UV are the same."""
+def _capsule_runs(monkeypatch, capsule: tuple, workers_tried=(1, 2)) -> dict:
+    """{workers: merge_islands(...)} on the capsule's cap and tube halves (the test above's
+    islands and bound), with ``workers`` worker processes for the merge's trials."""
     import texture.merge as merge
 
     cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=0, slit_target=0.2)
-    v, f = _capsule()
+    v, f = capsule
     c = v[f].mean(1)
     parts = (np.flatnonzero(c[:, 2] > 0), np.flatnonzero((c[:, 2] < 0) & (c[:, 1] >= 0)),
              np.flatnonzero((c[:, 2] < 0) & (c[:, 1] < 0)))
     runs = {}
-    for workers in (1, 2):
+    for workers in workers_tried:
         islands = []
         for lab, sel in enumerate(parts):
             islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
         relax_islands(islands, cfg)
         monkeypatch.setattr(merge, "default_workers", lambda w=workers: w)
         runs[workers] = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
-    (one, st1), (two, st2) = runs[1], runs[2]
+    return runs
+
+
+def test_trials_run_ahead_on_idle_cores_are_used_and_change_nothing(monkeypatch):
+    """The capsule above, finer (2,752 faces; its cap and a tube half 2,368): with two workers
+    its first two rounds hold one trial each, so the trial the next round makes if this one is
+    refused runs beside it (H + T2 beside H + T1, then T1 + T2 beside H + T2), in worker
+    processes, and the next round uses it instead of running it again. With one worker
+    nothing runs ahead; trials, merges and every UV are the same."""
+    (one, st1), (two, st2) = _capsule_runs(monkeypatch, _capsule(sections=64, rings=16, rows=6)).values()
     assert st1["ran_ahead"] == st1["ran_ahead_used"] == 0
     assert st2["ran_ahead_used"] == 2 and st2["ran_ahead"] >= 2  # H + T2 and T1 + T2 were not run again
     assert st2["trials"] == st1["trials"] and len(st2["trials"]) == 4
+    assert [t["merged"] for t in st2["trials"]] == [False, False, True, False]
     assert len(one) == len(two) == 2
     for a, b in zip(one, two):
         assert np.array_equal(a.work_faces, b.work_faces) and np.array_equal(a.faces, b.faces)
         assert np.array_equal(a.uv, b.uv)
+
+
+def test_no_trial_runs_ahead_of_rounds_too_small_for_workers(monkeypatch):
+    """The test above's coarse capsule (672 faces): no union reaches ``POOL_FACES``, where
+    starting workers costs more than the trials, so nothing runs ahead of its one-trial rounds."""
+    from texture.unwrap_islands import POOL_FACES
+
+    v, f = _capsule()
+    assert len(f) < POOL_FACES
+    _, st = _capsule_runs(monkeypatch, (v, f), (2,))[2]
+    assert st["ran_ahead"] == 0 and len(st["trials"]) == 4
 
 
 def test_merge_skips_a_union_holding_a_refused_one_that_its_rest_cannot_dilute():
