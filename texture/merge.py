@@ -29,8 +29,8 @@ next round makes if all of this round's are refused (:func:`_ahead`); a trial is
 whenever its islands are, so the next round uses what ran ahead on islands still there
 instead of running it again. Refused trials are most of the stage's time and late rounds
 often hold one trial, so this shortens the stage without changing any result (lion
-118.9 -> 75.8 s, the same unwrap: benchmarks/RESULTS.md); where a trial merges, what ran
-ahead on its islands is dropped (that round takes as long as its longest trial).
+113.7 -> 84.4 s, elephant 83.1 -> 73.1 s, the same unwraps: benchmarks/RESULTS.md); where a
+trial merges, what ran ahead on its islands is dropped.
 A union above ``cfg.merge_max_faces`` faces gets a cheaper trial (for time only: a trial
 costs a flattening of both islands again, and a failed two-resolution flattening falls back to
 SLIM at about a second per iteration at 50k faces): no slits, and no full-resolution SLIM where
