@@ -311,8 +311,8 @@ def _ahead(islands: list[Island], shared: dict, todo: list, failed: dict, cfg, s
     every trial of this one is refused (:func:`_pairs` with them failed; its bookkeeping on
     copies). A trial is the same whenever its islands are, so where they are still there and
     still chosen next round its result is used, not run again: a round of one trial leaves
-    the other cores idle, and refused trials are most of the stage's time (73-88 % on four
-    unseen meshes, benchmarks/RESULTS.md). Where a trial of this round merges, what ran ahead
+    the other cores idle, and refused trials are most of the stage's time (57-88 % on the
+    unseen meshes traced, 78 % on lion: benchmarks/RESULTS.md). Where a trial of this round merges, what ran ahead
     on its islands is dropped. So that the round takes no longer than its own trials would, a
     trial runs ahead only where it has no more faces than the round's largest (a trial's time
     grows with its union's faces: a larger one run ahead and not used took lilium's merge
