@@ -300,6 +300,11 @@ def _union(islands: list[Island], group: tuple[int, ...], xyz, work_faces, inter
     return (new, spare) if spare > 0 else ([], 0.0)
 
 
+def _faces(islands: list[Island], group: tuple[int, ...]) -> int:
+    """Faces of a trial's union."""
+    return sum(len(islands[k].faces) for k in group)
+
+
 def _key(islands: list[Island], group: tuple[int, ...]) -> tuple[int, ...]:
     """A trial's key: the ids of its islands (the same islands flatten the same union)."""
     return tuple(id(islands[k]) for k in group)
@@ -318,7 +323,7 @@ def _ahead(islands: list[Island], shared: dict, todo: list, failed: dict, cfg, s
     grows with its union's faces: a larger one run ahead and not used took lilium's merge
     stage 0.6 -> 1.6 s) and that largest has ``POOL_FACES`` or more (below, starting workers
     costs more than the trials: the decimated knight's unions of 54 and 98 faces, 0.2 -> 1.2 s)."""
-    size = max(sum(len(islands[k].faces) for k in g) for g in todo)
+    size = max(_faces(islands, g) for g in todo)
     if idle <= 0 or size < POOL_FACES:
         return []
     assumed = dict(failed)
@@ -327,7 +332,7 @@ def _ahead(islands: list[Island], shared: dict, todo: list, failed: dict, cfg, s
             assumed[_key(islands, g)] = (islands[g[0]], islands[g[1]])
     nxt = _pairs(islands, shared, assumed, cfg, strain, dict(skipped), xyz, work_faces, set(),
                  (list(refused[0]), dict(refused[1])))
-    return [g for g in nxt if sum(len(islands[k].faces) for k in g) <= size][:idle]
+    return [g for g in nxt if _faces(islands, g) <= size][:idle]
 
 
 def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray, adj, cfg,
@@ -386,14 +391,14 @@ def merge_islands(islands: list[Island], xyz: np.ndarray, work_faces: np.ndarray
         # a slit adds its length of seam: past the union's spare seam the trial is refused anyway;
         # a union above the face cap takes no slits (see the module docstring)
         small = [(isl, spare) for g, (new, spare) in zip(fresh, unions) for isl in new
-                 if sum(len(islands[k].faces) for k in g) <= cfg.merge_max_faces]
+                 if _faces(islands, g) <= cfg.merge_max_faces]
         slit_islands([isl for isl, _ in small], trial_cfg, [spare for _, spare in small])
         for g, u in zip(fresh, unions):
             ran[_key(islands, g)] = (tuple(islands[k] for k in g), u)
         st["ran_ahead"] += len(fresh) - sum(g in todo for g in fresh)
         st["ran_ahead_used"] += sum(g not in fresh for g in todo)
         seam_of = [sum(seam[k] for k in g) for g in todo]
-        faces_of = [sum(len(islands[k].faces) for k in g) for g in todo]
+        faces_of = [_faces(islands, g) for g in todo]
         trials = [ran.pop(_key(islands, g))[1][0] for g in todo]
         st["tried"] += len(todo)
         drop, add = set(), []

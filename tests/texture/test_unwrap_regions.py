@@ -180,6 +180,22 @@ def _capsule(radius=0.5, height=0.3, sections=32, rings=8, rows=3):
     return v, np.array(f)
 
 
+#: the capsule's bound: the cap alone flattens at energy excess 0.15, with a half 0.23 (see below)
+_CAPSULE_CFG = replace(UnwrapConfig(slim_iterations=100), max_slits=0, slit_target=0.2)
+
+
+def _capsule_islands(v, f) -> tuple[list, tuple]:
+    """(the capsule's cap H and tube halves T1, T2 flattened and relaxed as islands, their faces)."""
+    c = v[f].mean(1)
+    parts = (np.flatnonzero(c[:, 2] > 0), np.flatnonzero((c[:, 2] < 0) & (c[:, 1] >= 0)),
+             np.flatnonzero((c[:, 2] < 0) & (c[:, 1] < 0)))
+    islands = []
+    for lab, sel in enumerate(parts):
+        islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
+    relax_islands(islands, _CAPSULE_CFG)
+    return islands, parts
+
+
 def test_merge_tries_the_pairs_a_failed_round_left_out():
     """A hemisphere cap H on a short tube split into halves T1, T2. H shares its longest borders
     (half circles, 1.57 each) with T1 and T2, the halves 0.6 with each other. The first rounds
@@ -188,15 +204,9 @@ def test_merge_tries_the_pairs_a_failed_round_left_out():
     and merged although no earlier round merged anything."""
     # the cap alone flattens at energy excess 0.15, with a half 0.23: a bound of 0.2 that the
     # cap meets (an island above it would not be paired: no union can meet what a part misses)
-    cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=0, slit_target=0.2)
+    cfg = _CAPSULE_CFG
     v, f = _capsule()
-    c = v[f].mean(1)
-    parts = (np.flatnonzero(c[:, 2] > 0), np.flatnonzero((c[:, 2] < 0) & (c[:, 1] >= 0)),
-             np.flatnonzero((c[:, 2] < 0) & (c[:, 1] < 0)))
-    islands = []
-    for lab, sel in enumerate(parts):
-        islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
-    relax_islands(islands, cfg)
+    islands, parts = _capsule_islands(v, f)
     assert len(islands) == 3
     merged, st = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
     tried = [(t["faces"], t["merged"]) for t in st["trials"]]
@@ -216,19 +226,12 @@ def _capsule_runs(monkeypatch, capsule: tuple, workers_tried=(1, 2)) -> dict:
     islands and bound), with ``workers`` worker processes for the merge's trials."""
     import texture.merge as merge
 
-    cfg = replace(UnwrapConfig(slim_iterations=100), max_slits=0, slit_target=0.2)
     v, f = capsule
-    c = v[f].mean(1)
-    parts = (np.flatnonzero(c[:, 2] > 0), np.flatnonzero((c[:, 2] < 0) & (c[:, 1] >= 0)),
-             np.flatnonzero((c[:, 2] < 0) & (c[:, 1] < 0)))
     runs = {}
     for workers in workers_tried:
-        islands = []
-        for lab, sel in enumerate(parts):
-            islands += flatten_region(v, f[sel], sel, lab, 0, {"region_splits": 0, "cut_edges": 0})
-        relax_islands(islands, cfg)
+        islands, _ = _capsule_islands(v, f)
         monkeypatch.setattr(merge, "default_workers", lambda w=workers: w)
-        runs[workers] = merge_islands(islands, v, f, face_adjacency(v, f), cfg)
+        runs[workers] = merge_islands(islands, v, f, face_adjacency(v, f), _CAPSULE_CFG)
     return runs
 
 
