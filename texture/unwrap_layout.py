@@ -46,10 +46,12 @@ compared:
    are cheap to guess (one xatlas call each, 0.5-1 s in all). On six benchmark fits' final
    layouts it gained 0.000-0.023 (bob 0.593 -> 0.616, spot 0.559 -> 0.582) and lost
    nowhere: the layout it starts from is kept where no set packs better. Where the result is
-   still below ``cfg.pack_target`` and the search stopped at an ordinary halving that did not
-   pay, that halving is quarter-turned too and kept when it gains ``cfg.pack_cut_gain`` over
-   the result: the gain a halving must buy, measured as the layouts will be delivered (spot:
-   0.582 -> 0.627, one more island; genus2's last halving gains 0.016 and is not kept).
+   still below ``cfg.pack_target`` and the search stopped at a halving that did not pay,
+   that halving is quarter-turned too and kept when it gains what it must buy over the
+   result, measured as the layouts will be delivered: the ordinary one for
+   ``cfg.pack_cut_gain`` (spot: 0.582 -> 0.627, one more island; genus2's gains 0.016 and is
+   not kept), else the part's first seam for ``cfg.pack_first_seam_gain`` (a single-island
+   head, decimated-max: 0.49 -> 0.62, where the same cut gained 0.092 as xatlas turns it).
    With more than ``EXHAUSTIVE_TURN_ISLANDS`` islands each guess packs them all, and the 256
    sets cost 5-25 times what a one-island-at-a-time search does
    (:func:`texture.layout_packing._turn_sets`), which packed as well there. Quarter-turn
@@ -62,7 +64,9 @@ compared:
 4. **Two cuts at once** (:func:`_paired_halvings`), where the result is still below
    ``cfg.pack_target`` after a round in which no single halving paid: some cuts pay only in
    pairs (two like parts halved one at a time keep the atlas's shape), so even halvings are
-   tried two at a time, each still buying what it costs.
+   tried two at a time, each still buying what it costs; the pair that packs best is judged
+   quarter-turned, as it will be delivered (the same head: pairs at 0.51-0.55 as xatlas
+   turns them, 0.60-0.67 quarter-turned).
 
 5. **Exhaustive placement** (:func:`texture.layout_packing.brute_packed`), once, on the
    layout chosen above: xatlas's ``bruteForce`` tries every position for each island where
@@ -285,19 +289,34 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     candidates; a single cut's guess cannot rank them, as their gain shows only in pairs):
     at most two axes of ``PACK_CUT_ISLANDS`` islands; each layout they leave is halved evenly
     again (the second cut of such a pair is the even one too), and the pairs are guessed and
-    searched like one round's halvings."""
+    searched like one round's halvings; the one that packs best is judged quarter-turned too,
+    and the pair made is delivered quarter-turned where that packs better."""
     firsts = [c for cands, _ in ranked for c in cands if c[1]["at"] == "middle"]
     pairs = [(c, [first, d]) for layout, first in firsts for seam in (False, True)
              for c, d in _halvings(layout, comp, cfg, seam, middle_only=True)]
-    options = []
+    modes: dict[int, list[int]] = {}  # the best guesses' modes of each pair, best first
     for j, m in _best_guesses([c for c, _ in pairs], islands, cfg, cache):
-        need = floor + sum(cfg.pack_first_seam_gain if d["first_seam"] else cfg.pack_cut_gain for d in pairs[j][1])
-        got = best_packed([pairs[j][0]], [m], cfg, cache, need)
-        if got is not None:
-            options.append((got, sum(d["cut_length"] for d in pairs[j][1]), pairs[j][1]))
+        modes.setdefault(j, []).append(m)
+
+    def need(j: int) -> float:
+        return floor + sum(cfg.pack_first_seam_gain if d["first_seam"] else cfg.pack_cut_gain for d in pairs[j][1])
+
+    packed = {j: got for j, ms in modes.items()
+              if (got := best_packed([pairs[j][0]] * len(ms), ms, cfg, cache)) is not None}
+    # the pair that packs best is judged as it will be delivered, quarter-turned (the turns
+    # are the search's most costly step, so one pair, as for the halving that fell short)
+    turned_pair = None
+    if packed:
+        j = max(packed, key=lambda k: packed[k].utilization)  # the first of equals
+        if (got := quarter_turned(pairs[j][0], cfg, cache, max(need(j), packed[j].utilization))) is not None:
+            packed[j], turned_pair = got, j
+    options = [(got, sum(d["cut_length"] for d in pairs[j][1]), pairs[j][1], j) for j, got in packed.items()
+               if got.utilization >= need(j)]
     if not options:
         return None
-    got, _, descriptions = _chosen(options, cfg, floor)
+    got, _, descriptions, j = _chosen(options, cfg, floor)
+    if j != turned_pair:  # delivered quarter-turned where that packs better
+        got = quarter_turned(pairs[j][0], cfg, cache, got.utilization) or got
     return got, descriptions
 
 
@@ -383,15 +402,18 @@ def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool,
         say(f"pack: quarter turns (utilisation {best.utilization:.2f})")
         best = quarter_turned(best.islands, cfg, cache, best.utilization) or best
     if fell_short is not None and best.utilization < cfg.pack_target:
-        # the halving that fell short (its round's guesses kept), judged as it will be
-        # delivered: quarter-turned too
+        # the halvings that fell short (their round's guesses kept), judged as they will be
+        # delivered: quarter-turned too; an ordinary one first, then a first seam (as the
+        # rounds try them), each for what it must buy
         say("pack: the last halving, quarter-turned")
-        missed = _best_halving(fell_short, cfg, None, 0.0, cache)
-        turned_halving = None if missed is None else quarter_turned(missed[0].islands, cfg, cache,
-                                                                     best.utilization + cfg.pack_cut_gain)
-        if turned_halving is not None:
-            best = turned_halving
-            stats["halvings"].append({**missed[1], "utilization": best.utilization, "after_quarter_turns": True})
+        for ranking, gain in ((fell_short, cfg.pack_cut_gain), (first, cfg.pack_first_seam_gain)):
+            missed = _best_halving(ranking, cfg, None, 0.0, cache)
+            turned_halving = None if missed is None else quarter_turned(missed[0].islands, cfg, cache,
+                                                                         best.utilization + gain)
+            if turned_halving is not None:
+                best = turned_halving
+                stats["halvings"].append({**missed[1], "utilization": best.utilization, "after_quarter_turns": True})
+                break
     # the rounds' own cuts: a pair is made on their layout (``cut``), in place of a missed
     # halving kept above
     made = [h for h in stats["halvings"] if not h.get("after_quarter_turns")]
@@ -399,6 +421,6 @@ def _rounds(uncut: Packed, comp: np.ndarray, cfg, cache: dict, spikes: bool,
         say("pack: two cuts at once")
         pair = _paired_halvings(cut.islands, comp, cfg, cache, [fell_short, first], best.utilization)
         if pair is not None:
-            best = quarter_turned(pair[0].islands, cfg, cache, pair[0].utilization) or pair[0]
+            best = pair[0]  # already quarter-turned where that packs better
             stats["halvings"] = made + [{**d, "utilization": best.utilization, "paired": True} for d in pair[1]]
     return best, stats

@@ -304,6 +304,63 @@ def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned(monkeypa
     assert strict.packing.utilization < 0.6
 
 
+def _right_triangle_cells(nx: int, ny: int) -> Island:
+    """A flat right triangle of 0.25 cells, legs ``nx`` and ``ny`` cells (the cells whose
+    centres lie below its hypotenuse), the only island of its part."""
+    g = _grid_island(nx, ny, 0.25)
+    c = g.uv[g.faces].mean(1) / 0.25
+    f = g.faces[c[:, 0] / nx + c[:, 1] / ny < 1]
+    vid, inv = np.unique(f, return_inverse=True)
+    return Island(inv.reshape(-1, 3), g.uv[vid], g.xyz[vid], np.arange(len(f)), np.arange(len(vid)), 0)
+
+
+def _delivered(got, cfg) -> None:
+    """The chosen layout as delivered: every face once, none mirrored, no overlap."""
+    uv, faces, island = island_arrays(got.islands)
+    assert (signed_areas(got.packing.uv, faces) > 0).all()
+    assert verify_packing(got.packing.uv, faces, island, cfg.resolution)[0] == 0
+    work = np.sort(np.concatenate([isl.work_faces for isl in got.islands]))
+    assert np.array_equal(work, np.arange(len(work)))
+
+
+def test_a_first_seam_that_pays_only_quarter_turned_is_made_alone():
+    """A 12 x 9-cell right triangle, one part flattened whole (about 0.44). As xatlas turns the
+    halves no single first seam gains ``pack_first_seam_gain``; quarter-turned (as the layout
+    is delivered) its best one does, and that one cut reaches the target: two islands, where
+    judging it before the turns left two cuts at once to do it (three islands). With the gain
+    it must buy above what it gains, nothing is cut this way."""
+    tri = _right_triangle_cells(12, 9)
+    comp = np.zeros(len(tri.faces), np.int64)
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    got = choose_layout([tri], comp, cfg)
+    steps = got.stats["halvings"]
+    assert [(h["first_seam"], bool(h.get("after_quarter_turns")), bool(h.get("paired"))) for h in steps] == [
+        (True, True, False)]
+    assert len(got.islands) == 2
+    assert got.stats["utilization_turned_as_xatlas"] == pytest.approx(got.stats["utilization_uncut"])  # no round cut
+    assert got.packing.utilization >= max(cfg.pack_target, got.stats["utilization_uncut"] + cfg.pack_first_seam_gain)
+    _delivered(got, cfg)
+    gain = got.packing.utilization - got.stats["utilization_uncut"]
+    strict = choose_layout([tri], comp, UnwrapConfig(resolution=512, padding=4, pack_first_seam_gain=gain + 0.01))
+    assert not any(h.get("after_quarter_turns") for h in strict.stats["halvings"])
+
+
+def test_two_cuts_at_once_are_judged_quarter_turned():
+    """A 16 x 16-cell right isosceles triangle, one part flattened whole (about 0.53): no single
+    halving pays, quarter-turned or not, and no pair gains what two cuts must buy as xatlas
+    turns the pieces; quarter-turned, as delivered, the chosen pair does (three islands)."""
+    tri = _right_triangle_cells(16, 16)
+    comp = np.zeros(len(tri.faces), np.int64)
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    got = choose_layout([tri], comp, cfg)
+    steps = got.stats["halvings"]
+    assert len(got.islands) == 3 and [bool(h.get("paired")) for h in steps] == [True, True]
+    need = sum(cfg.pack_first_seam_gain if h["first_seam"] else cfg.pack_cut_gain for h in steps)
+    assert got.packing.utilization >= got.stats["utilization_uncut"] + need
+    assert got.packing.utilization >= cfg.pack_target
+    _delivered(got, cfg)
+
+
 def _two_strips(cells: int = 24) -> tuple[list[Island], np.ndarray]:
     """Two like 6 x 1 strips, each the only island of its own part."""
     a = _grid_island(cells, 4, 0.25)
