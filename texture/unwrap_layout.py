@@ -242,9 +242,9 @@ def _best_guesses(layouts: list[list[Island]], islands: list[Island], cfg, cache
     return [(i, m) for _, i, m in guesses[:PACK_SEARCHED]]
 
 
-def _chosen(options: list[tuple[Packed, float, object]], cfg, base: float) -> tuple[Packed, float, object]:
+def _chosen(options: list[tuple], cfg, base: float) -> tuple:
     """Which of a round's packed halvings that pay is made: ``options`` are (packing, length of
-    the cut, what it is), ``base`` the utilisation of the layout they cut. A halving buys
+    the cut, what it is, and whatever else the caller keeps with it), ``base`` the utilisation of the layout they cut. A halving buys
     utilisation with seam. Where some reach ``cfg.pack_target``, the one with the shortest
     cut among them (utilisation past the target buys nothing its extra seam is worth); else
     the one that buys the most utilisation per length of cut (the next round buys the rest).

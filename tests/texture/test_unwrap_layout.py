@@ -181,12 +181,15 @@ def test_the_search_notes_each_step_as_it_starts_and_chooses_the_same():
     assert np.array_equal(got.packing.uv, quiet.packing.uv)
 
 
-def _right_triangle(n: int, cell: float, k: int) -> Island:
-    """The lower-left half of an n-by-n grid of ``cell``-sized cells: a right isosceles triangle,
-    legs ``n * cell``, as island ``k`` (working faces and vertices numbered from ``k`` times its size)."""
-    g = _grid_island(n, n, cell)
+def _right_triangle(n: int, cell: float, k: int, ny: int | None = None) -> Island:
+    """The lower-left half of an n-by-``ny`` grid of ``cell``-sized cells (the cells whose centres
+    lie below its hypotenuse): a right triangle, legs ``n * cell`` and ``ny * cell`` (isosceles
+    where ``ny`` is None), as island ``k`` (working faces and vertices numbered from ``k`` times
+    its size)."""
+    ny = n if ny is None else ny
+    g = _grid_island(n, ny, cell)
     c = g.uv[g.faces].mean(1)
-    faces = g.faces[c[:, 0] + c[:, 1] < n * cell]
+    faces = g.faces[c[:, 0] / (n * cell) + c[:, 1] / (ny * cell) < 1]
     vid, inv = np.unique(faces, return_inverse=True)
     faces = inv.reshape(-1, 3)
     return Island(faces, g.uv[vid], g.xyz[vid] + [5.0 * k, 0.0, 0.0], np.arange(len(faces)) + k * len(faces),
@@ -304,16 +307,6 @@ def test_a_halving_that_falls_short_is_kept_when_it_pays_quarter_turned(monkeypa
     assert strict.packing.utilization < 0.6
 
 
-def _right_triangle_cells(nx: int, ny: int) -> Island:
-    """A flat right triangle of 0.25 cells, legs ``nx`` and ``ny`` cells (the cells whose
-    centres lie below its hypotenuse), the only island of its part."""
-    g = _grid_island(nx, ny, 0.25)
-    c = g.uv[g.faces].mean(1) / 0.25
-    f = g.faces[c[:, 0] / nx + c[:, 1] / ny < 1]
-    vid, inv = np.unique(f, return_inverse=True)
-    return Island(inv.reshape(-1, 3), g.uv[vid], g.xyz[vid], np.arange(len(f)), np.arange(len(vid)), 0)
-
-
 def _delivered(got, cfg) -> None:
     """The chosen layout as delivered: every face once, none mirrored, no overlap."""
     uv, faces, island = island_arrays(got.islands)
@@ -329,7 +322,7 @@ def test_a_first_seam_that_pays_only_quarter_turned_is_made_alone():
     is delivered) its best one does, and that one cut reaches the target: two islands, where
     judging it before the turns left two cuts at once to do it (three islands). With the gain
     it must buy above what it gains, nothing is cut this way."""
-    tri = _right_triangle_cells(12, 9)
+    tri = _right_triangle(12, 0.25, 0, 9)
     comp = np.zeros(len(tri.faces), np.int64)
     cfg = UnwrapConfig(resolution=512, padding=4)
     got = choose_layout([tri], comp, cfg)
@@ -349,7 +342,7 @@ def test_two_cuts_at_once_are_judged_quarter_turned():
     """A 16 x 16-cell right isosceles triangle, one part flattened whole (about 0.53): no single
     halving pays, quarter-turned or not, and no pair gains what two cuts must buy as xatlas
     turns the pieces; quarter-turned, as delivered, the chosen pair does (three islands)."""
-    tri = _right_triangle_cells(16, 16)
+    tri = _right_triangle(16, 0.25, 0)
     comp = np.zeros(len(tri.faces), np.int64)
     cfg = UnwrapConfig(resolution=512, padding=4)
     got = choose_layout([tri], comp, cfg)
