@@ -23,7 +23,7 @@ from mnacore import distortion as D
 from mnacore.triangles import signed_areas, triangle_areas
 
 from .distortion_faces import face_geometry
-from .flatten import PLAIN_SLIM, _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
+from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
 from .relax import RelaxConfig, boundary_edges, energy_excess, is_injective, relax_island
 
 #: stop slitting an island after this many slits in a row that did not lower its energy.
@@ -171,12 +171,14 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
     best = SlitResult(faces, uv, source, 0, before, before)
     cur_faces, cur_uv, cur_src = faces, uv, source
     misses, length = 0, 0.0
-    # once an island's fresh embedding fell back from two resolutions to plain SLIM, later
-    # slits embed it with plain SLIM directly: the fallback's map is the same, and what made
-    # the coarse copy fail (a start map that squeezes most of the disk: a long disk cut
-    # through many handles) is the island's shape, which one more slit path leaves as it is
-    # (7 of 7 such retries failed again, on a marching-cubes lattice and a benchmark fit, 2-12 s each)
-    embed_cfg = cfg
+    # above cfg.multires_faces a slit's fresh embedding is made in two resolutions only, and
+    # where they fail the island is not slit further: the split stage halves what stays above
+    # the bound, into halves where SLIM is cheaper. Plain SLIM there (and the scaffold its free
+    # run then needs) cost 35-55 s a slit on a 30k-face island of an unseen scan (the beast:
+    # eight such slits, 289 s, left it at excess 0.244, and it was halved after all); what made
+    # the coarse copy fail (a start map that squeezes most of the disk) is the island's shape,
+    # which one more slit path leaves as it is (7 of 7 retries failed again, 2-12 s each)
+    embed_cfg = replace(cfg, slim_max_faces=cfg.multires_faces) if cfg.multires_faces > 0 else cfg
     for k in range(max_slits):
         if best.excess_after <= target:
             break
@@ -194,12 +196,8 @@ def slit_island(xyz: np.ndarray, faces: np.ndarray, uv: np.ndarray, cfg: RelaxCo
             break
         new_src = cur_src[np.asarray(src, np.int64)]
         new_uv, excess, mode = _relaxed_cut(xyz[new_src], new_faces, cur_uv[np.asarray(src, np.int64)], cfg, embed_cfg)
-        # not after mode "start": a disk above slim_max_faces keeps its start where two
-        # resolutions fail, and plain SLIM on a later slit would take minutes
-        if mode in PLAIN_SLIM and 0 < embed_cfg.multires_faces < len(new_faces):
-            embed_cfg = replace(embed_cfg, multires_faces=0)
-        if new_uv is None:
-            break
+        if new_uv is None or (mode == "start" and 0 < cfg.multires_faces < len(new_faces)):
+            break  # no map, or two resolutions failed on a large island (above)
         cur_faces, cur_uv, cur_src = new_faces, new_uv, new_src
         if excess < best.excess_after:
             best = SlitResult(cur_faces, cur_uv, cur_src, k + 1, before, excess)

@@ -886,10 +886,14 @@ def test_a_moebius_strip_is_cut_where_its_winding_cannot_agree():
     assert all(t == (1, 1) for t in island_topology(res))  # disks
 
 
-def test_slits_stop_trying_two_resolutions_on_an_island_where_it_failed(monkeypatch):
-    """Once a slit island's fresh embedding fell back from two resolutions to plain SLIM,
-    the island's later slits go to plain SLIM directly (the fallback's map is the same)."""
+def test_a_large_island_whose_two_resolution_slit_fails_is_left_to_the_split_stage(monkeypatch):
+    """Above multires_faces a slit's fresh embedding is made in two resolutions only: where
+    they fail, no plain SLIM runs on the slit island and the island is not slit (the split
+    stage halves it); where they succeed, the same island is slit."""
+    from dataclasses import replace
+
     import texture.multires as M
+    import texture.relax as R
     from texture.relax import RelaxConfig, energy_excess
     from texture.slits import slit_island
 
@@ -900,19 +904,21 @@ def test_slits_stop_trying_two_resolutions_on_an_island_where_it_failed(monkeypa
     uv, _ = _relaxed_disk(xyz, faces)
     # two resolutions above 500 faces, refused after every coarse SLIM
     cfg = RelaxConfig(iterations=200, min_gain=1e-4, multires_faces=500, coarse_excess_limit=1e-9)
-    real, calls = M.relax_multires, []
+    real_multires, real_slim, calls, slim = M.relax_multires, R.relax_island, [], []
 
     def spy(*args, **kw):
         calls.append(len(args[2]))
-        return real(*args, **kw)
+        return real_multires(*args, **kw)
+
+    def slim_spy(xyz_, uv_, faces_, *args, **kw):
+        slim.append(len(faces_))
+        return real_slim(xyz_, uv_, faces_, *args, **kw)
 
     monkeypatch.setattr(M, "relax_multires", spy)
+    monkeypatch.setattr(R, "relax_island", slim_spy)
     got = slit_island(xyz, faces, uv, cfg, target=1e-3, max_slits=3)
-    assert got.slits >= 2 and got.excess_after < energy_excess(xyz, uv, faces)
-    assert len(calls) == 1  # the first slit's embedding only
-    # above slim_max_faces the fallback keeps the start (no plain SLIM): each slit tries again
-    calls.clear()
-    from dataclasses import replace
-
-    slit_island(xyz, faces, uv, replace(cfg, slim_max_faces=500), target=1e-3, max_slits=3)
-    assert len(calls) >= 2
+    assert got.slits == 0 and np.array_equal(got.uv, uv) and np.array_equal(got.faces, faces)
+    assert calls == [len(faces)]  # the first slit's embedding only
+    assert len(faces) not in slim  # no SLIM on the whole slit island (only on its coarse copy)
+    ok = slit_island(xyz, faces, uv, replace(cfg, coarse_excess_limit=0.0), target=1e-3, max_slits=3)
+    assert ok.slits >= 1 and ok.excess_after < energy_excess(xyz, uv, faces) - 0.01
