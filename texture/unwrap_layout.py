@@ -156,39 +156,71 @@ class LayoutChoice:
     stats: dict = field(default_factory=dict)
 
 
-def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool,
+def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool, cache: dict,
               middle_only: bool = False, spikes: bool = False) -> list[tuple[list[Island], dict]]:
     """Every halving tried this round: (islands after it, its description). ``first_seam``:
     the halvings :func:`may_halve` refuses (of a part that flattened as one island, its first
     seam, or of a part at ``cfg.long_max_islands``, past the island target), which must buy
     ``cfg.pack_first_seam_gain``; else the others. ``middle_only``: the even halvings only
     (:func:`_paired_halvings`). ``spikes``: each of the same islands' protrusions cut off at
-    its neck (:func:`texture.spikes.spike_cuts`) is a candidate too."""
+    its neck (:func:`texture.spikes.spike_cuts`) is a candidate too. ``cache`` keeps each
+    island's halvings and protrusion cuts (:func:`_cut_once`)."""
     part, per_comp = island_parts(islands, comp)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
-    jobs, tried, adjs = [], [], {}
+    jobs, tried, done = [], [], {}
     for rank, k in enumerate(np.argsort(area, kind="stable")[::-1][:PACK_CUT_ISLANDS]):
         count = int(per_comp[part[k]])
         if may_halve(count, cfg) == first_seam:
             continue
-        adj = adjs[k] = face_adjacency(islands[k].xyz, islands[k].faces)  # once for its six halvings
         for along in (False, True):
-            for where, cuts in zip(("middle", "low_quarter", "high_quarter")[:1 if middle_only else 3], PACK_CUTS):
-                jobs.append((islands[k], along, cuts, adj))
+            for w, where in enumerate(("middle", "low_quarter", "high_quarter")[:1 if middle_only else 3]):
+                key = _cut_key(islands[k], "halved", along, w)
+                if _cached(cache, islands[k], key):
+                    done[len(tried)] = cache[key][2]
+                else:
+                    jobs.append((len(tried), key, (islands[k], along, PACK_CUTS[w], _adjacency(islands[k], cache))))
                 tried.append((k, {"island_rank": rank, "along_axis": along, "at": where}))
     # each halving is a maximum flow on its band and moves its ears: independent, so they run in
     # the pool where the islands are large (the 111k-face scan: 18 a round, a quarter of its packing)
-    halved_faces = sum(len(islands[k].faces) for k in {k for k, _ in tried})  # each island once
-    done = parallel_map(_halve_job, jobs, parallel=halved_faces >= MIN_FACES)
-    out = [(islands[:k] + islands[k + 1:] + halved[0], {**d, "cut_length": halved[1], "first_seam": first_seam})
-           for (k, d), halved in zip(tried, done) if halved is not None]
+    halved_faces = sum(len(isl.faces) for isl in {id(j[2][0]): j[2][0] for j in jobs}.values())  # each island once
+    for (i, key, job), got in zip(jobs, parallel_map(_halve_job, [j[2] for j in jobs], parallel=halved_faces >= MIN_FACES)):
+        done[i] = got
+        cache[key] = (job[0].faces, job[0].uv, got)
+    out = [(islands[:k] + islands[k + 1:] + done[i][0], {**d, "cut_length": done[i][1], "first_seam": first_seam})
+           for i, (k, d) in enumerate(tried) if done[i] is not None]
     if spikes and not middle_only:
         for k, d in dict(tried).items():  # each island halved above, once
-            for pieces, length, what in spike_cuts(islands[k], adjs[k]):
+            key = _cut_key(islands[k], "spikes")
+            if not _cached(cache, islands[k], key):
+                cache[key] = (islands[k].faces, islands[k].uv, spike_cuts(islands[k], _adjacency(islands[k], cache)))
+            for pieces, length, what in cache[key][2]:
                 out.append((islands[:k] + islands[k + 1:] + pieces,
                             {"island_rank": d["island_rank"], "along_axis": None, "at": "spike", **what,
                              "cut_length": length, "first_seam": first_seam}))
     return out
+
+
+def _cut_key(isl: Island, *what) -> tuple:
+    """The search cache's key of a cut of ``isl`` (:func:`_halvings`): an island is the same
+    while its faces and UV arrays are (the search makes new islands, it never changes one), so
+    the rounds, the quarter-turned judgements and the pairs reuse what an earlier step cut
+    instead of cutting it again (the same cut: :func:`texture.halving.halve_across` and
+    :func:`texture.spikes.spike_cuts` depend on the island only)."""
+    return ("cut", id(isl.faces), id(isl.uv), *what)
+
+
+def _cached(cache: dict, isl: Island, key: tuple) -> bool:
+    """``key`` holds a cut of this island (the entry keeps its arrays, so no other array can take their ids)."""
+    hit = cache.get(key)
+    return hit is not None and hit[0] is isl.faces and hit[1] is isl.uv
+
+
+def _adjacency(isl: Island, cache: dict):
+    """The island's face adjacency, made once for all its cuts."""
+    key = _cut_key(isl, "adjacency")
+    if not _cached(cache, isl, key):
+        cache[key] = (isl.faces, isl.uv, face_adjacency(isl.xyz, isl.faces))
+    return cache[key][2]
 
 
 def _halve_job(job, _shared=None):
@@ -206,7 +238,7 @@ def _ranked_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
                      spikes: bool = False) -> Ranked:
     """Every halving this round (:func:`_halvings`, with ``spikes``), each guessed in
     :data:`HALVING_MODES` by one unbounded pack, and the best guesses."""
-    cands = _halvings(islands, comp, cfg, first_seam, spikes=spikes)
+    cands = _halvings(islands, comp, cfg, first_seam, cache, spikes=spikes)
     return cands, _best_guesses([c for c, _ in cands], islands, cfg, cache)
 
 
@@ -293,7 +325,7 @@ def _paired_halvings(islands: list[Island], comp: np.ndarray, cfg, cache: dict, 
     and the pair made is delivered quarter-turned where that packs better."""
     firsts = [c for cands, _ in ranked for c in cands if c[1]["at"] == "middle"]
     pairs = [(c, [first, d]) for layout, first in firsts for seam in (False, True)
-             for c, d in _halvings(layout, comp, cfg, seam, middle_only=True)]
+             for c, d in _halvings(layout, comp, cfg, seam, cache, middle_only=True)]
     modes: dict[int, list[int]] = {}  # the best guesses' modes of each pair, best first
     for j, m in _best_guesses([c for c, _ in pairs], islands, cfg, cache):
         modes.setdefault(j, []).append(m)

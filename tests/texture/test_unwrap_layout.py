@@ -582,3 +582,41 @@ def test_rounds_that_end_below_the_target_with_protrusions_cut_are_run_again_wit
     assert got.packing.utilization == max(st["with_spikes"], st["without_spikes"])
     reached = choose_layout([isl], comp, UnwrapConfig(resolution=512, padding=4))
     assert "without_spikes" not in reached.stats
+
+
+def test_each_halving_of_an_island_is_cut_once_in_a_search(monkeypatch):
+    """The packing search cuts each halving of an island once: later rounds, the quarter-turned
+    judgements and the pairs take it from the search's cache (the same cut: it depends on the
+    island only), and choose the comb's three halvings as before. A round's halvings asked
+    for again are the same candidates with no new cut; an island with equal but new arrays
+    is cut anew."""
+    import texture.unwrap_layout as UL
+
+    calls = []  # the islands themselves are kept, so no id below is reused by another array
+    real = UL.halve_across
+
+    def spy(isl, along, cuts, adj):
+        calls.append((isl, along, tuple(np.round(cuts, 9))))
+        return real(isl, along, cuts, adj)
+
+    monkeypatch.setattr(UL, "halve_across", spy)
+    comb = _comb(teeth=4, height=10)
+    _, small = _pair()
+    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
+                   np.arange(len(small.uv)) + len(comb.uv), 1)
+    comp = np.zeros(len(comb.faces) + len(small.faces), np.int64)
+    cfg = UnwrapConfig(resolution=512, padding=4)
+    got = choose_layout([comb, small], comp, cfg)
+    assert len(got.stats["halvings"]) == 3 and got.packing.utilization >= 0.6 and len(got.islands) == 5
+    keys = [(id(isl.faces), id(isl.uv), along, cuts) for isl, along, cuts in calls]
+    assert len(keys) > 12 and len(set(keys)) == len(keys)
+    cache: dict = {}
+    first = UL._halvings([comb, small], comp, cfg, False, cache)
+    n = len(calls)
+    again = UL._halvings([comb, small], comp, cfg, False, cache)
+    assert len(calls) == n and len(again) == len(first) >= 6
+    for (a, da), (b, db) in zip(first, again):
+        assert da == db and len(a) == len(b) and all(x is y for x, y in zip(a, b))
+    fresh = Island(comb.faces.copy(), comb.uv.copy(), comb.xyz, comb.work_faces, comb.work_vertex, comb.label)
+    UL._halvings([fresh, small], comp, cfg, False, cache)
+    assert len(calls) > n
