@@ -164,7 +164,7 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool, ca
     ``cfg.pack_first_seam_gain``; else the others. ``middle_only``: the even halvings only
     (:func:`_paired_halvings`). ``spikes``: each of the same islands' protrusions cut off at
     its neck (:func:`texture.spikes.spike_cuts`) is a candidate too. ``cache`` keeps each
-    island's halvings and protrusion cuts (:func:`_cut_once`)."""
+    island's halvings and protrusion cuts (:func:`_cut_key`)."""
     part, per_comp = island_parts(islands, comp)
     area = [float(triangle_areas(i.xyz, i.faces).sum()) for i in islands]
     jobs, tried, done = [], [], {}
