@@ -136,16 +136,21 @@ def _comb(teeth: int = 4, height: int = 8, cell: float = 0.25) -> Island:
     return Island(faces, g.uv[vid], g.xyz[vid], np.arange(len(faces)), np.arange(len(vid)), 0)
 
 
+def _comb_and_small() -> tuple[tuple[Island, Island], np.ndarray]:
+    """The comb of four teeth 10 cells long and a small island of its part, and the part."""
+    comb = _comb(teeth=4, height=10)
+    _, small = _pair()
+    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
+                   np.arange(len(small.uv)) + len(comb.uv), 1)
+    return (comb, small), np.zeros(len(comb.faces) + len(small.faces), np.int64)
+
+
 def test_halvings_go_on_while_each_pays_until_the_target():
     """A comb of four long teeth (with a small island of its part) needs three halvings, each
     gaining more than ``pack_cut_gain``, to pack 0.6: at most two leave it below the target;
     by default it gets the third and reaches it. (Teeth 8 cells long needed three while the
     cuts were straight; the shortest cuts, between the teeth, get there in two.)"""
-    comb = _comb(teeth=4, height=10)
-    _, small = _pair()
-    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
-                   np.arange(len(small.uv)) + len(comb.uv), 1)
-    comp = np.zeros(len(comb.faces) + len(small.faces), np.int64)
+    (comb, small), comp = _comb_and_small()
     two = choose_layout([comb, small], comp, UnwrapConfig(resolution=512, padding=4, pack_max_cuts=2))
     got = choose_layout([comb, small], comp, UnwrapConfig(resolution=512, padding=4))
     assert len(two.stats["halvings"]) == 2 and two.packing.utilization < 0.6
@@ -161,11 +166,7 @@ def test_the_search_notes_each_step_as_it_starts_and_chooses_the_same():
     halving rounds (the third falls short), then the quarter turns, the halving that fell
     short quarter-turned and the exhaustive placement, each noted as it starts, with the
     utilisation it starts from; with the notes taken, it chooses what it chooses without."""
-    comb = _comb(teeth=4, height=10)
-    _, small = _pair()
-    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
-                   np.arange(len(small.uv)) + len(comb.uv), 1)
-    comp = np.zeros(len(comb.faces) + len(small.faces), np.int64)
+    (comb, small), comp = _comb_and_small()
     cfg = UnwrapConfig(resolution=512, padding=4)
     notes: list[str] = []
     got = choose_layout([comb, small], comp, cfg, note=notes.append)
@@ -600,11 +601,7 @@ def test_each_halving_of_an_island_is_cut_once_in_a_search(monkeypatch):
         return real(isl, along, cuts, adj)
 
     monkeypatch.setattr(UL, "halve_across", spy)
-    comb = _comb(teeth=4, height=10)
-    _, small = _pair()
-    small = Island(small.faces, small.uv, small.xyz, np.arange(len(small.faces)) + len(comb.faces),
-                   np.arange(len(small.uv)) + len(comb.uv), 1)
-    comp = np.zeros(len(comb.faces) + len(small.faces), np.int64)
+    (comb, small), comp = _comb_and_small()
     cfg = UnwrapConfig(resolution=512, padding=4)
     got = choose_layout([comb, small], comp, cfg)
     assert len(got.stats["halvings"]) == 3 and got.packing.utilization >= 0.6 and len(got.islands) == 5
