@@ -126,7 +126,7 @@ def test_a_rounds_halvings_in_the_pool_are_the_serial_ones(monkeypatch):
     runs = []
     for min_faces in (10**9, 0):  # never the pool, always the pool
         monkeypatch.setattr(unwrap_layout, "MIN_FACES", min_faces)
-        runs.append(unwrap_layout._halvings(islands, comp, cfg, first_seam=False))
+        runs.append(unwrap_layout._halvings(islands, comp, cfg, first_seam=False, cache={}))  # cut anew in each
     serial, pooled = runs
     assert parallel.peak_worker_rss_mb() > 0  # a worker ran them
     assert len(serial) == len(pooled) >= 6
