@@ -182,7 +182,7 @@ def _halvings(islands: list[Island], comp: np.ndarray, cfg, first_seam: bool, ca
                 tried.append((k, {"island_rank": rank, "along_axis": along, "at": where}))
     # each halving is a maximum flow on its band and moves its ears: independent, so they run in
     # the pool where the islands are large (the 111k-face scan: 18 a round, a quarter of its packing)
-    halved_faces = sum(len(isl.faces) for isl in {id(j[2][0]): j[2][0] for j in jobs}.values())  # each island once
+    halved_faces = sum(len(islands[k].faces) for k in {tried[i][0] for i, _, _ in jobs})  # each island cut, once
     for (i, key, job), got in zip(jobs, parallel_map(_halve_job, [j[2] for j in jobs], parallel=halved_faces >= MIN_FACES)):
         done[i] = got
         cache[key] = (job[0].faces, job[0].uv, got)
