@@ -234,7 +234,8 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
     or when SLIM gives non-finite values. A map of infinite energy excess whose faces all
     keep some area (a Tutte map of a long, branching disk squeezes its far faces to 1e-11
     of the mean area: :func:`energy_excess` counts them degenerate) is relaxed: SLIM's
-    first iterations spread them out (excess 506 after one on a 21k-face disk).
+    first iterations spread them out (excess 506 after one on a 21k-face disk); its iterates are
+    taken while the excess stays infinite, as long as they stay finite and flip-free.
     """
     import igl
 
@@ -275,7 +276,15 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
     while it < cfg.iterations:
         nxt = np.array(igl.slim_solve(data, 1)[:, :2], np.float64) * mirror
         new_excess = energy_excess(xyz, nxt, faces) if np.isfinite(nxt).all() else np.inf
-        if not np.isfinite(new_excess) or new_excess > excess:
+        if not np.isfinite(new_excess):
+            # still infinite from an infinite start: SLIM's line search lowers its own energy at
+            # every step, and its iterates spread the squeezed faces out over a few iterations
+            # (a Tutte start of a 17k-face half of an unseen scan: 313, 111, 14, 2, then no faces
+            # below DEGENERATE_UV_REL, excess 3.2e6 after four and 357 after twelve); stopping at the
+            # first such iterate left that island as it started, for the slits to relax it
+            if np.isfinite(excess) or not np.isfinite(nxt).all() or not (signed_areas(nxt, faces) * mirror[1] > 0).all():
+                break
+        elif new_excess > excess:
             break
         crossing = crossing_edges(faces, nxt, border_edges) if check_crossings else np.zeros((0, 2, 2), np.int64)
         if len(crossing):
@@ -290,7 +299,7 @@ def relax_island(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg: RelaxC
             pins = np.union1d(pins, border[hit])
             data = start(current)
             continue
-        gain = excess - new_excess
+        gain = excess - new_excess if np.isfinite(new_excess) else np.inf
         current, excess = nxt, new_excess
         track_valid(current, excess)
         it += 1

@@ -71,6 +71,25 @@ def test_relax_unrolls_a_developable_surface_isometrically(mirrored):
     assert (sign == (-1 if mirrored else 1)).all()
 
 
+def test_a_start_squeezed_below_the_degenerate_area_is_relaxed():
+    """A flip-free start whose far faces are squeezed below ``DEGENERATE_UV_REL`` of the mean
+    UV area (as Tutte's map squeezes the far end of a long, branching disk) has infinite
+    energy excess; SLIM's iterates spread those faces out before its excess turns finite,
+    and the half cylinder still unrolls isometrically (the first such iterate used to end
+    the run, leaving the start)."""
+    from texture.distortion_faces import DEGENERATE_UV_REL
+
+    xyz, uv, faces = _cylinder(nu=41, nv=21)
+    k = 11.0  # around the cylinder u = (1 - exp(-k theta)) / k: the faces at theta = pi shrink by exp(-k pi)
+    uv = np.column_stack([(1 - np.exp(-k * uv[:, 0])) / k, uv[:, 1]])
+    area = _signed_areas(uv, faces)
+    assert (area > 0).all() and area.min() < DEGENERATE_UV_REL * area.mean()
+    r = relax_island(xyz, uv, faces, RelaxConfig(iterations=300, min_gain=1e-6))
+    assert np.isinf(r.excess_before) and r.excess_after < 1e-3
+    np.testing.assert_allclose(_edge_lengths(r.uv, faces), _edge_lengths(xyz, faces), rtol=2e-2)
+    assert (_signed_areas(r.uv, faces) > 0).all()
+
+
 def test_islands_share_one_scale():
     """Two flat unit squares with UVs at scales 1 and 3: relaxed, both map at the *one* global
     isometric scale (UV area / 3D area = 1 / s^2 with s^2 = total 3D / total UV area = 2 / 10)."""
