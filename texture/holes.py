@@ -97,8 +97,9 @@ def hole_fans(xyz: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def flatten_filled(xyz: np.ndarray, faces: np.ndarray, relax, target: float, max_slits: int,
                    max_added: float = np.inf) -> Filled | None:
     """The region ``(xyz, faces)`` flattened with its small holes filled (see module
-    docstring), or None where no hole was filled or a step failed. ``relax``: the SLIM
-    options; slits while the energy excess exceeds ``target``, at most ``max_slits``.
+    docstring), or None where no hole was filled, a step failed or the map stays above
+    ``target`` after its slits. ``relax``: the SLIM options; slits while the energy excess
+    exceeds ``target``, at most ``max_slits``.
 
     ``max_added``: the seam (cuts for handles and slits, :attr:`Filled.added`) a caller can
     use the flattening only under (a merge trial: the seam the union saves,
@@ -122,7 +123,13 @@ def flatten_filled(xyz: np.ndarray, faces: np.ndarray, relax, target: float, max
         return None
     uv = relax_disk(x, uv * np.sqrt(triangle_areas(x, disk.faces).sum() / signed.sum()), disk.faces, relax)[0]
     cut = slit_island(x, disk.faces, uv, relax, target, max_slits, budget)
-    if cut.stopped_by_length:
+    # refused above ``target`` after its slits too: the caller keeps a filled island as it is
+    # (holed: no slits and no relaxation later), and the region cut to a disk is flattened to
+    # the bound like every island. A 510-face region of an unseen scan (ogre) kept its filled
+    # map at excess 233 (SLIM stalled at 243, and a slit's map measured -230 by a cancelling
+    # det g, fixed in texture.distortion_faces.symmetric_dirichlet), where cut to a disk it
+    # took three slits to 0.031; the split stage then halved 15 other islands around it
+    if cut.stopped_by_length or not cut.excess_after <= target:
         return None
     # libigl's cut_mesh keeps the faces and their order: the input's faces come first
     real = cut.faces[:len(faces)]

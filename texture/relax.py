@@ -27,11 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from mnacore import distortion as D
 from mnacore.triangles import signed_areas, triangle_areas
 
 from . import parallel
-from .distortion_faces import face_geometry
+from .distortion_faces import face_geometry, symmetric_dirichlet
 from .islands import edge_keys, edge_use_counts, half_edges, uv_islands
 from .parallel import parallel_map
 
@@ -87,9 +86,7 @@ def _local_jacobian_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -
     v = geom.valid & (geom.area_3d > 0)
     if not v.any():
         return np.inf, 0.0
-    g = D.metric_tensor(geom.jac[v])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e = D.trace(g) + D.trace_inverse(g, eps=0.0)
+    e = symmetric_dirichlet(geom)[v]
     a = geom.area_3d[v]
     if (~geom.valid).any() or not np.isfinite(e).all():
         return np.inf, float(a.sum())

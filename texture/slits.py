@@ -19,10 +19,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from mnacore import distortion as D
 from mnacore.triangles import signed_areas, triangle_areas
 
-from .distortion_faces import face_geometry
+from .distortion_faces import face_geometry, symmetric_dirichlet
 from .flatten import _cut_flags, is_disk, ordered_boundary, relax_disk, start_map
 from .relax import RelaxConfig, boundary_edges, energy_excess, is_injective, relax_island
 
@@ -49,9 +48,7 @@ def face_energy(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> np.ndarra
     geom = face_geometry(xyz, faces, uv)
     e = np.full(len(faces), np.inf)
     v = geom.valid
-    g = D.metric_tensor(geom.jac[v])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e[v] = D.trace(g) + D.trace_inverse(g, eps=0.0) - 4.0
+    e[v] = symmetric_dirichlet(geom)[v] - 4.0
     return e
 
 

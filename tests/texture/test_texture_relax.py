@@ -57,6 +57,20 @@ def test_stretched_cylinder_energy_matches_closed_form():
     assert energy_excess(xyz, uv, faces) == pytest.approx(c**2 + 1 / c**2 - 2, rel=1e-9)
 
 
+
+@pytest.mark.parametrize("height", [1e-9, 2e-8, 1e-5])
+@pytest.mark.parametrize("shear", [0.0, 0.3])
+def test_energy_of_a_3d_sliver_matches_closed_form(height, shear):
+    """A fair UV triangle on a 3D sliver of the given height: J's columns (1, 0, 0) and
+    (1 + shear, height, 0) are nearly parallel, ``tr g = 1 + (1 + shear)^2 + height^2`` and
+    ``det g = height^2``, so ``tr g^-1 = tr g / height^2``. ``E G - F^2`` cancels here (10 %
+    off at 2e-8, infinite at 1e-9); the energy takes ``det g`` from the areas."""
+    uv = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    xyz = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0 + shear, height, 0.0]])
+    tr = 1.0 + (1.0 + shear) ** 2 + height**2
+    closed = tr * (1.0 + 1.0 / height**2) - 4.0
+    assert energy_excess(xyz, uv, np.array([[0, 1, 2]])) == pytest.approx(closed, rel=1e-9)
+
 @pytest.mark.parametrize("mirrored", [False, True])
 def test_relax_unrolls_a_developable_surface_isometrically(mirrored):
     xyz, uv, faces = _cylinder()

@@ -165,3 +165,26 @@ def test_a_unions_border_seam_is_half_its_border_inside_the_mesh():
 
     assert _border_seam(block(3, 3), xyz, interior) == pytest.approx(0.5 * 14 * 0.5)
     assert _border_seam(block(0, 0), xyz, interior) == pytest.approx(0.5 * 7 * 0.5)  # two sides are the mesh's border
+
+
+def test_a_filled_flattening_that_stays_above_the_bound_is_refused():
+    """The sphere cap above is curved: without slits its filled map cannot reach
+    ``slit_target`` (its excess stays above it), and the flattening is refused (None), so
+    ``flatten_region`` cuts the region to a disk (an island the later stages relax and slit
+    to the bound) instead of keeping a filled island above the bound, which no later stage
+    touches; with slits allowed it reaches the bound and is kept."""
+    from texture.holes import flatten_filled
+    from texture.relax import RelaxConfig, energy_excess
+    from texture.unwrap import UnwrapConfig
+    from texture.unwrap_islands import HoledRule, flatten_region
+
+    xyz, faces = _holed_cap()
+    cfg, relax = UnwrapConfig(), RelaxConfig(iterations=200, min_gain=1e-4)
+    assert flatten_filled(xyz, faces, relax, cfg.slit_target, 0) is None
+    slit = flatten_filled(xyz, faces, relax, cfg.slit_target, cfg.max_slits)
+    assert slit is not None and energy_excess(xyz[slit.source], slit.uv, slit.faces) <= cfg.slit_target
+    stats = {"region_splits": 0, "cut_edges": 0}
+    out = flatten_region(xyz, faces, np.arange(len(faces)), 0, 0, stats,
+                         HoledRule(cfg.slit_target, relax, cfg.slim_max_faces, 0))
+    assert "filled" not in stats and out and not any(i.holed for i in out)
+    assert sum(len(i.faces) for i in out) == len(faces)
