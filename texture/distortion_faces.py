@@ -56,7 +56,6 @@ def face_geometry(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> Fa
     return FaceGeometry(jac, uv_area, area_3d, normal, valid)
 
 
-
 def symmetric_dirichlet(geom: FaceGeometry) -> np.ndarray:
     """(F,) ``tr g + tr g^-1`` of the map UV -> 3D per face (the energy SLIM minimises; NaN on
     faces that are not ``valid``, inf on a face of no 3D area).
@@ -70,6 +69,7 @@ def symmetric_dirichlet(geom: FaceGeometry) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = geom.uv_area / geom.area_3d
         return D.trace(g) * (1.0 + ratio * ratio)
+
 
 def metric_tensors(geom: FaceGeometry, uv_scale: float = 1.0) -> D.MetricTensor:
     """``g = J^T J`` per face, for UVs scaled by ``uv_scale`` (g scales by ``1/uv_scale^2``)."""

@@ -237,9 +237,6 @@ GUARD_PIN_ROUNDS = 16
 #: a marching-cubes lattice cut through many handles) it stalled at 1.7-4e4 times the
 #: scaffold's result.
 GUARD_START_RATIO = 10.0
-#: the modes of :func:`relax_disk` in which plain SLIM made the map (not "multires": two
-#: resolutions; not "start": no map was made)
-PLAIN_SLIM = ("free", "guarded", "scaffold")
 
 
 def relax_disk(xyz: np.ndarray, uv: np.ndarray, faces: np.ndarray, cfg) -> tuple[np.ndarray, dict]:

@@ -57,7 +57,6 @@ def test_stretched_cylinder_energy_matches_closed_form():
     assert energy_excess(xyz, uv, faces) == pytest.approx(c**2 + 1 / c**2 - 2, rel=1e-9)
 
 
-
 @pytest.mark.parametrize("height", [1e-9, 2e-8, 1e-5])
 @pytest.mark.parametrize("shear", [0.0, 0.3])
 def test_energy_of_a_3d_sliver_matches_closed_form(height, shear):
@@ -70,6 +69,7 @@ def test_energy_of_a_3d_sliver_matches_closed_form(height, shear):
     tr = 1.0 + (1.0 + shear) ** 2 + height**2
     closed = tr * (1.0 + 1.0 / height**2) - 4.0
     assert energy_excess(xyz, uv, np.array([[0, 1, 2]])) == pytest.approx(closed, rel=1e-9)
+
 
 @pytest.mark.parametrize("mirrored", [False, True])
 def test_relax_unrolls_a_developable_surface_isometrically(mirrored):
